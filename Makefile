@@ -1,0 +1,39 @@
+# Every target sets up .venv itself (pinned by requirements.lock) before it runs.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export PYTHONDONTWRITEBYTECODE :=
+
+.PHONY: venv test demo bench proof lint clean
+
+venv: $(STAMP)
+
+$(STAMP): requirements.lock setup.py setup.cfg package.xml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check -r requirements.lock
+	$(PY) -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
+	touch $(STAMP)
+
+test: venv
+	$(VENV)/bin/ruff check tire_model_ros test bench
+	$(PY) -m pytest -q test
+
+demo: venv
+	$(PY) -m tire_model_ros.demo
+
+bench: venv
+	$(PY) bench/bench_model.py
+	$(PY) bench/bench_node.py
+	$(PY) bench/bench_recording.py
+
+proof: venv
+	$(PY) bench/proof.py
+
+lint: venv
+	$(VENV)/bin/ruff check tire_model_ros test bench
+
+clean:
+	rm -rf $(VENV) build install log .pytest_cache

@@ -1,0 +1,33 @@
+"""ament_python package tire_model_ros."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "tire_model_ros"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "test.*"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob("config/*")),
+    ],
+    package_data={PACKAGE: ["data/*.tir"]},
+    install_requires=["setuptools", "numpy", "scipy"],
+    zip_safe=True,
+    maintainer="tire_model_ros developers",
+    maintainer_email="dev@tire-model-ros.invalid",
+    description="Extended Magic Formula tyre model: wheel-force node, refit tool, mismatch diagnosis.",
+    license="BSD-3-Clause",
+    python_requires=">=3.10",
+    entry_points={
+        "console_scripts": [
+            "tire_model_node = tire_model_ros.node:main",
+            "tire-model-node = tire_model_ros.node:main",
+            "tire-model = tire_model_ros.cli:main",
+        ],
+    },
+)
