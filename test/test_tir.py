@@ -1,0 +1,557 @@
+"""The .tir reader/writer and the parameter table, on the real public property files."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tempfile
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tire_model_ros.model.params import (
+    PARAMETERS,
+    SECTION_ORDER,
+    check_params,
+    default_params,
+    is_required,
+)
+from tire_model_ros.model.tir import (
+    TirData,
+    TirError,
+    nominal_operating_point,
+    read_tir,
+    tir_text,
+    write_tir,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+REF_DIR = ROOT.parent / "shared" / "reference" / "tir"
+DEFAULT_TIR = ROOT / "config" / "default.tir"
+REF_FILES = sorted(REF_DIR.glob("*.tir"))
+MF61 = REF_DIR / "MagicFormula61_Parameters.tir"
+CITYBUS = REF_DIR / "citybus_tire_CityBus_Pac02Tire.tir"
+
+# file -> (fittyp family, FITTYP in file, FNOMIN, PDY1, NOMPRES, format); values from the files
+SPOT = {
+    "MagicFormula61_Parameters.tir": (61, 61, 6752.0, 1.0085, 260000.0, "MF"),
+    "MagicFormula62_Parameters.tir": (62, 62, 6752.0, 1.0085, 260000.0, "MF"),
+    "MagicFormula52_Parameters.tir": (6, 6, 9416.6, 0.8271, 220000.0, "MF"),  # NOMPRES default
+    "Model_Unstable.tir": (61, 61, 5260.0, None, 260000.0, "MF"),
+    "FSAE_Defaults.tir": (61, 61, 1000.0, None, 85000.0, "MF"),
+    "PacejkaBook_Defaults.tir": (61, 61, 4000.0, None, 220000.0, "MF"),
+    "VW_microbus_json_mf_185_80R14.tir": (6, None, 3800.0, 0.94002, 220000.0, "PAC2002"),
+    "hmmwv_pactest.tir": (6, None, 4850.0, 1.0489, 220000.0, "PAC2002"),
+    "citybus_tire_CityBus_Pac02Tire.tir": (6, None, 35000.0, 0.73957, 800000.0, "PAC2002"),
+    "feda_tires_335_65R22_5_G275MSA_60psi.tir": (6, 5, 21674.0, -0.73151, 220000.0, "PAC2002"),
+}
+
+
+def test_reference_directory_has_the_files():
+    assert {p.name for p in REF_FILES} == set(SPOT), "reference .tir set changed"
+
+
+# --------------------------------------------------------------------------------------------
+# Loading and spot values
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("path", REF_FILES, ids=lambda p: p.name)
+def test_reference_file_loads_with_spot_values(path):
+    tir = read_tir(path)
+    fittyp, in_file, fnomin, pdy1, nompres, fmt = SPOT[path.name]
+    assert tir.fittyp == fittyp
+    assert tir.fittyp_in_file == in_file
+    assert tir.source_format == fmt
+    assert tir.params["FNOMIN"] == fnomin
+    assert tir.params["NOMPRES"] == nompres
+    if pdy1 is not None:
+        assert tir.params["PDY1"] == pdy1
+    # defaults filled: every table coefficient is there and finite, temperature neutral
+    assert set(PARAMETERS) <= set(tir.params)
+    assert all(math.isfinite(v) for v in tir.params.values())
+    assert tir.params["NOMTEMP"] == 25.0
+    assert all(tir.params[f"TT{a}{i}"] == 0.0 for a in "XY" for i in range(1, 5))
+    assert tir.path == str(path)
+
+
+def test_mf61_values_and_defaults():
+    tir = read_tir(MF61)
+    P = tir.params
+    assert (P["PCX1"], P["PKY1"], P["QSY8"], P["PPZ1"]) == (1.5482, -28.3155, -0.4, 0.94372)
+    assert (P["LONGVL"], P["UNLOADED_RADIUS"], P["INFLPRES"]) == (16.6, 0.3943, 260000.0)
+    assert P["MASS"] == 17.451  # [INERTIA] MASS, not the [UNITS] MASS = 'kg'
+    assert tir.units["MASS"] == "kg"
+    assert tir.strings["TYRESIDE"] == "RIGHT"
+    assert "PHY3" not in tir.given and P["PHY3"] == 0.0  # MF 5.2 only: default
+    assert "FNOMIN" in tir.given
+
+
+def test_mf52_has_shape_table_and_defaults_for_mf6_terms():
+    tir = read_tir(REF_DIR / "MagicFormula52_Parameters.tir")
+    assert tir.params["PHY3"] == 0.006973
+    assert tir.params["PPX1"] == 0.0 and "PPX1" not in tir.given
+    assert tir.params["INFLPRES"] == tir.params["NOMPRES"]  # INFLPRES defaults to NOMPRES
+    (shape,) = tir.raw_sections
+    assert shape.name == "SHAPE" and shape.after == "DIMENSION"
+    assert shape.lines[0] == "{radial width}" and len(shape.lines) == 5
+
+
+def test_pac2002_names_and_tire_conditions_are_mapped():
+    tir = read_tir(CITYBUS)
+    assert tir.source_format == "PAC2002" and tir.fittyp == 6
+    assert tir.renamed == {
+        "IP": "INFLPRES", "IP_NOM": "NOMPRES", "QPX1": "PPMX1", "QPZ1": "PPZ1", "QPZ2": "PPZ2",
+    }  # fmt: skip
+    assert {"INFLPRES", "NOMPRES", "PPZ1", "PPZ2", "PPMX1"} <= tir.given
+    assert not {"QPZ1", "QPZ2", "QPX1", "IP", "IP_NOM"} & set(tir.params)
+    # PAC2002 names without an exact MF 6.1 equivalent keep their names
+    assert tir.params["LGAY"] == 1.0 and tir.params["PHY3"] == -0.038716
+    assert tir.params["LIP"] == 1.0 and tir.params["PTX4"] == 0.1  # PTX4 unknown: kept
+    assert tir.extra_sections["PTX4"] == "LONGITUDINAL_COEFFICIENTS"
+
+
+def test_pac2002_pressure_terms_carry_their_values(tmp_path):
+    text = CITYBUS.read_text()
+    text = re.sub(r"QPZ1 +=.*", "QPZ1 = 0.123", text)
+    text = re.sub(r"QPZ2 +=.*", "QPZ2 = -0.25", text)
+    text = re.sub(r"QPX1 +=.*", "QPX1 = 0.5  $ camber Mx with pressure", text)
+    text = text.replace("IP                         = 800000", "IP = 700000")
+    text = text.replace("FNOMIN                     = 35000", "FNOMIN = 35000\nQPFZ1 = 0.7")
+    path = tmp_path / "pac.tir"
+    path.write_text(text)
+    P = read_tir(path).params
+    assert (P["PPZ1"], P["PPZ2"], P["PPMX1"], P["PFZ1"]) == (0.123, -0.25, 0.5, 0.7)
+    assert (P["INFLPRES"], P["NOMPRES"]) == (700000.0, 800000.0)
+
+
+def test_pac2002_name_and_mf61_name_disagreeing_is_an_error(tmp_path):
+    text = CITYBUS.read_text().replace("QPZ2 ", "PPZ1 = 0.9\nQPZ2 ")
+    path = tmp_path / "both.tir"
+    path.write_text(text)
+    with pytest.raises(TirError, match=r"both\.tir: line \d+: (PPZ1|QPZ1): duplicate"):
+        read_tir(path)
+
+
+def test_unknown_sections_are_kept_in_order():
+    tir = read_tir(REF_DIR / "feda_tires_335_65R22_5_G275MSA_60psi.tir")
+    names = [(r.name, r.after) for r in tir.raw_sections]
+    assert names == [
+        ("GOODYEAR", "MDI_HEADER"), ("SHAPE", "DIMENSION"), ("DEFLECTION_LOAD_CURVE", "VERTICAL"),
+        ("BOTTOMING_CURVE", "VERTICAL"), ("DEFLECTION_LOAD_CURVE", "ALIGNING_COEFFICIENTS"),
+    ]  # fmt: skip
+    assert "INFLATION_PRESSURE" not in tir.params  # vendor section: not a coefficient
+    assert tir.preamble[0].startswith("!****FED BASE TIRE")
+
+
+def test_default_tir_has_the_temperature_extension():
+    tir = read_tir(DEFAULT_TIR)
+    P = tir.params
+    assert tir.fittyp == 61 and P["NOMTEMP"] > 0
+    coeffs = [P[f"TT{a}{i}"] for a in "XY" for i in range(1, 5)]
+    assert all(c != 0.0 for c in coeffs)
+    dT = 30.0 / P["NOMTEMP"]  # 30 degC above nominal: grip falls 5-10 %, stiffness falls
+    mux = 1 + P["TTX3"] * dT + P["TTX4"] * dT**2
+    muy = 1 + P["TTY3"] * dT + P["TTY4"] * dT**2
+    kxk = 1 + P["TTX1"] * dT + P["TTX2"] * dT**2
+    assert 0.90 <= mux <= 0.95 and 0.90 <= muy <= 0.95 and kxk < 1.0
+    assert "ILLUSTRATIVE" in DEFAULT_TIR.read_text().upper()
+    # otherwise the MF 6.1 reference file, unchanged
+    ref = read_tir(MF61).params
+    assert all(P[k] == v for k, v in ref.items() if k != "NOMTEMP" and not k.startswith("TT"))
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("path", [*REF_FILES, DEFAULT_TIR], ids=lambda p: p.name)
+def test_write_read_round_trip_is_exact(path, tmp_path):
+    tir = read_tir(path)
+    out = tmp_path / path.name
+    write_tir(tir, out)
+    back = read_tir(out)
+    assert back.params == tir.params  # exact float equality
+    assert back.fittyp == tir.fittyp
+    assert back.strings == tir.strings
+    assert back.raw_sections == tir.raw_sections
+    assert back.preamble == tir.preamble
+    text = out.read_text()
+    assert "[TEMPERATURE_COEFFICIENTS]" in text and re.search(r"^NOMTEMP\s*=", text, re.M)
+    # a second write gives the same text: the written form is a fixed point
+    again = tmp_path / "again.tir"
+    write_tir(back, again)
+    assert again.read_text() == text
+
+
+def test_round_trip_of_awkward_floats(tmp_path):
+    tir = read_tir(MF61).with_params(
+        {"PDY1": 0.1 + 0.2, "PKY1": -1e-300, "QSY4": 1 / 3, "FNOMIN": 6752.000000000001,
+         "PEX1": -0.0, "PCX1": 5e-324, "QSX4": 1.7976931348623157e308}
+    )  # fmt: skip
+    write_tir(tir, tmp_path / "f.tir")
+    back = read_tir(tmp_path / "f.tir").params
+    for key in ("PDY1", "PKY1", "QSY4", "FNOMIN", "PEX1", "PCX1", "QSX4"):
+        assert back[key] == tir.params[key] and math.copysign(1, back[key]) == math.copysign(
+            1, tir.params[key]
+        )
+
+
+def test_written_file_is_standard_and_documented(tmp_path):
+    write_tir(read_tir(MF61), tmp_path / "w.tir")
+    lines = (tmp_path / "w.tir").read_text().splitlines()
+    assert lines[0] == "[MDI_HEADER]"
+    sections = [ln.strip("[]") for ln in lines if ln.startswith("[")]
+    assert sections == [s for s in SECTION_ORDER if s in sections]  # standard order
+    fnomin = next(ln for ln in lines if ln.startswith("FNOMIN"))
+    assert "$" in fnomin and "[N]" in fnomin  # description with units
+    assert not any(ln.startswith(("Q_CAM1", "PHY3")) for ln in lines)  # other versions' defaults
+
+
+def test_write_refuses_to_overwrite(tmp_path):
+    tir = read_tir(MF61)
+    out = tmp_path / "x.tir"
+    out.write_text("precious")
+    with pytest.raises(FileExistsError, match=r"x\.tir"):
+        write_tir(tir, out)
+    assert out.read_text() == "precious"
+    write_tir(tir, out, overwrite=True)
+    assert read_tir(out).params == tir.params
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.tir"]  # no temporary left over
+
+
+def test_write_into_missing_directory_fails_cleanly(tmp_path):
+    with pytest.raises(OSError):
+        write_tir(read_tir(MF61), tmp_path / "nope" / "x.tir")
+    assert list(tmp_path.iterdir()) == []
+
+
+# --------------------------------------------------------------------------------------------
+# Tolerated format variations
+# --------------------------------------------------------------------------------------------
+
+
+def test_crlf_case_comments_and_blank_lines_do_not_change_the_result(tmp_path):
+    ref = read_tir(MF61)
+    lines = MF61.read_text().splitlines()
+    out = []
+    for i, line in enumerate(lines):
+        if "=" in line and i % 2:
+            key, rest = line.split("=", 1)
+            line = f"  {key.lower()}=\t{rest.replace('$', '! ', 1)}  "
+        if line.startswith("[") and i % 3:
+            line = line.lower() + "   $ section comment"
+        out += [line, "", "$ comment line", "   ! another"]
+    path = tmp_path / "variant.tir"
+    path.write_bytes("\r\n".join(out).encode())
+    tir = read_tir(path)
+    assert tir.params == ref.params and tir.strings == ref.strings and tir.fittyp == 61
+
+
+def test_mixed_line_endings_and_bom(tmp_path):
+    raw = MF61.read_bytes().replace(b"\n", b"\r", 40)
+    path = tmp_path / "mixed.tir"
+    path.write_bytes(b"\xef\xbb\xbf" + raw)
+    assert read_tir(path).params == read_tir(MF61).params
+
+
+def test_quoted_strings_may_hold_comment_characters(tmp_path):
+    text = MF61.read_text().replace("'RIGHT'", "'RI$GHT !x'   $ side")
+    (tmp_path / "q.tir").write_text(text)
+    assert read_tir(tmp_path / "q.tir").strings["TYRESIDE"] == "RI$GHT !x"
+
+
+def test_same_value_twice_is_accepted(tmp_path):
+    text = MF61.read_text().replace("PDY2 ", "PDY1 = 1.0085e0\nPDY2 ")
+    (tmp_path / "d.tir").write_text(text)
+    assert read_tir(tmp_path / "d.tir").params["PDY1"] == 1.0085
+
+
+# --------------------------------------------------------------------------------------------
+# Errors: every message names the file, the line and the key
+# --------------------------------------------------------------------------------------------
+
+
+def _mangled(tmp_path, name, edit) -> Path:
+    lines = MF61.read_text().splitlines()
+    lines = edit(lines)
+    path = tmp_path / name
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _line_of(lines, prefix):
+    return next(i for i, ln in enumerate(lines, 1) if ln.startswith(prefix))
+
+
+def _replace(prefix, new):
+    def edit(lines):
+        i = _line_of(lines, prefix) - 1
+        return [*lines[:i], new, *lines[i + 1 :]]
+
+    return edit
+
+
+REF_LINES = MF61.read_text().splitlines()
+L = {p: _line_of(REF_LINES, p) for p in ("FNOMIN", "PDY1", "FITTYP", "LENGTH", "[VERTICAL]")}
+
+ERROR_CASES = [
+    # (name, edit, line, key, words in the reason)
+    ("empty", _replace("FNOMIN", "FNOMIN = $ nothing"), L["FNOMIN"], "FNOMIN", "empty value"),
+    ("nonnum", _replace("PDY1", "PDY1 = 1.0O85"), L["PDY1"], "PDY1", "non-numeric"),
+    ("quoted", _replace("PDY1", "PDY1 = '1.0'"), L["PDY1"], "PDY1", "non-numeric"),
+    ("two", _replace("PDY1", "PDY1 = 1.0 2.0"), L["PDY1"], "PDY1", "non-numeric"),
+    ("underscore", _replace("PDY1", "PDY1 = 1_0"), L["PDY1"], "PDY1", "non-numeric"),
+    ("nan", _replace("PDY1", "PDY1 = nan"), L["PDY1"], "PDY1", "non-numeric"),
+    ("huge", _replace("PDY1", "PDY1 = 1e999"), L["PDY1"], "PDY1", "finite"),
+    ("fittyp", _replace("FITTYP", "FITTYP = 63"), L["FITTYP"], "FITTYP", "unknown FITTYP"),
+    ("fittypf", _replace("FITTYP", "FITTYP = 61.5"), L["FITTYP"], "FITTYP", "unknown FITTYP"),
+    ("units", _replace("LENGTH", "LENGTH = 'mm'"), L["LENGTH"], "LENGTH", "not SI"),
+    ("degrees", _replace("ANGLE", "Angle = 'deg'"), L["LENGTH"] + 2, "ANGLE", "not SI"),
+    ("bar", _replace("TIME", "PRESSURE = 'bar' $ gauge"), L["LENGTH"] + 4, "PRESSURE", "not SI"),
+    ("garbage", _replace("PDY1", "this is not a key"), L["PDY1"], None, "unreadable line"),
+    ("badkey", _replace("PDY1", "PD Y1 = 1"), L["PDY1"], "PD Y1", "invalid key"),
+    ("header", _replace("[VERTICAL]", "[VERTICAL"), L["[VERTICAL]"], None, "section header"),
+    ("outside", lambda ls: ["FOO = 1", *ls], 1, "FOO", "outside any"),
+    ("dup", _replace("PDY2", "PDY1 = 2.0"), L["PDY1"] + 1, "PDY1", "duplicate"),
+    ("unterminated", _replace("FITTYP", "TYRESIDE = 'LEFT"), L["FITTYP"], "TYRESIDE", "quoted"),
+    ("negative", _replace("FNOMIN", "FNOMIN = -5"), L["FNOMIN"], "FNOMIN", "must be > 0"),
+    (
+        "missing",
+        lambda ls: [x for x in ls if not x.startswith("FNOMIN")],
+        L["[VERTICAL]"],
+        "FNOMIN",
+        "required key missing",
+    ),
+    (
+        "nompres",
+        lambda ls: [x for x in ls if not x.startswith("NOMPRES")],
+        _line_of(REF_LINES, "[OPERATING_CONDITIONS]"),
+        "NOMPRES",
+        "required",
+    ),
+    (
+        "nofittyp",
+        lambda ls: [x for x in ls if not x.startswith("FITTYP")],
+        _line_of(REF_LINES, "[MODEL]"),
+        "FITTYP",
+        "required",
+    ),
+]
+
+
+@pytest.mark.parametrize(("name", "edit", "line", "key", "reason"), ERROR_CASES,
+                         ids=[c[0] for c in ERROR_CASES])  # fmt: skip
+def test_malformed_file_error_names_file_line_key(tmp_path, name, edit, line, key, reason):
+    path = _mangled(tmp_path, f"bad_{name}.tir", edit)
+    with pytest.raises(TirError) as info:
+        read_tir(path)
+    message = str(info.value)
+    assert f"bad_{name}.tir" in message
+    assert f"line {line}:" in message, message
+    if key is not None:
+        assert key in message, message
+        assert info.value.key == key
+    assert reason in message, message
+    assert info.value.line == line
+    assert isinstance(info.value, ValueError)
+
+
+def test_nompres_needed_when_a_pressure_term_is_set_in_mf52(tmp_path):
+    src = (REF_DIR / "MagicFormula52_Parameters.tir").read_text()
+    path = tmp_path / "p52.tir"
+    path.write_text(src.replace("PDX1 ", "PPX3 = 0.2\nPDX1 "))
+    with pytest.raises(TirError, match=r"p52\.tir: line \d+: NOMPRES: required because PPX3"):
+        read_tir(path)
+
+
+def test_missing_file_and_not_utf8(tmp_path):
+    with pytest.raises(TirError, match=r"absent\.tir: file not found"):
+        read_tir(tmp_path / "absent.tir")
+    data = MF61.read_bytes().splitlines(keepends=True)
+    data[29] = b"$ caf\xe9 comment\n"
+    (tmp_path / "latin1.tir").write_bytes(b"".join(data))
+    with pytest.raises(TirError, match=r"latin1\.tir: line 30: not UTF-8"):
+        read_tir(tmp_path / "latin1.tir")
+    (tmp_path / "cr.tir").write_bytes(b"".join(data).replace(b"\n", b"\r"))  # old Mac ends
+    with pytest.raises(TirError, match=r"cr\.tir: line 30: not UTF-8"):
+        read_tir(tmp_path / "cr.tir")
+    with pytest.raises(TirError, match="directory"):
+        read_tir(tmp_path)
+
+
+# --------------------------------------------------------------------------------------------
+# TirData helpers and the parameter table
+# --------------------------------------------------------------------------------------------
+
+
+def test_with_params_copies_and_validates():
+    tir = read_tir(MF61)
+    new = tir.with_params({"pdy1": 1.2, "QPZ1": 0.5, "TTY3": -0.1})
+    assert (new.params["PDY1"], new.params["PPZ1"], new.params["TTY3"]) == (1.2, 0.5, -0.1)
+    assert tir.params["PDY1"] == 1.0085 and tir.params["TTY3"] == 0.0  # original untouched
+    assert "TTY3" in new.given and isinstance(new, TirData)
+    for bad, word in [({"NOPE": 1.0}, "NOPE"), ({"FITTYP": 62}, "FITTYP"),
+                      ({"PDY1": math.nan}, "PDY1"), ({"FNOMIN": 0.0}, "FNOMIN"),
+                      ({"PCX1": -1.0}, "PCX1"), ({"NOMTEMP": 0.0}, "NOMTEMP"),
+                      ({"FZMIN": 1e9}, "FZMIN"), ({"PDY1": "x"}, "PDY1")]:  # fmt: skip
+        with pytest.raises(ValueError, match=word):
+            tir.with_params(bad)
+
+
+def test_nominal_operating_point():
+    op = nominal_operating_point(read_tir(DEFAULT_TIR))
+    assert (op.Fz, op.Vx, op.p, op.T) == (6752.0, 16.6, 260000.0, 25.0)
+    assert (op.kappa, op.alpha, op.gamma) == (0.0, 0.0, 0.0)
+    assert read_tir(MF61).nominal() == op
+
+
+def test_parameter_table_is_consistent():
+    for name, spec in PARAMETERS.items():
+        assert name == name.upper() and spec.section in SECTION_ORDER
+        assert spec.check(spec.default) is None, name  # defaults are valid
+        assert spec.description and "[" in spec.description, name  # units given
+    assert check_params(default_params()) == []
+    P = PARAMETERS
+    assert P["LFZO"].default == 1.0 and P["LMUY"].default == 1.0 and P["PPX1"].default == 0.0
+    assert P["NOMTEMP"].default == 25.0 and P["NOMTEMP"].section == "OPERATING_CONDITIONS"
+    assert P["TTX1"].section == "TEMPERATURE_COEFFICIENTS"
+    assert P["PCX1"].default == 1.65 and P["QSY7"].default == 0.85  # MFeval's defaults
+    for name in ("FNOMIN", "NOMPRES", "NOMTEMP", "PCX1", "PCY1", "UNLOADED_RADIUS"):
+        assert P[name].check(0.0) is not None and P[name].check(1.0) is None, name
+    assert is_required("fnomin") and is_required("NOMPRES", 61) and not is_required("NOMPRES", 6)
+    assert not is_required("PDY1", 61)
+
+
+def test_tir_text_matches_written_file(tmp_path):
+    tir = read_tir(CITYBUS)
+    write_tir(tir, tmp_path / "c.tir")
+    assert (tmp_path / "c.tir").read_text() == tir_text(tir)
+    text = tir_text(tir)  # written with MF 6.1 names
+    assert re.search(r"^PPZ1\s*=", text, re.M) and not re.search(r"^QPZ1\s*=", text, re.M)
+
+
+# --------------------------------------------------------------------------------------------
+# Property: mangled real files give a TirData or a TirError, never anything else
+# --------------------------------------------------------------------------------------------
+
+_SOURCES = [p.read_bytes() for p in (*REF_FILES, DEFAULT_TIR)]
+
+_ops = st.one_of(
+    st.tuples(st.just("delete"), st.integers(0, 10_000)),
+    st.tuples(st.just("duplicate"), st.integers(0, 10_000)),
+    st.tuples(st.just("swap"), st.integers(0, 10_000), st.integers(0, 10_000)),
+    st.tuples(st.just("truncate"), st.integers(0, 100_000)),
+    st.tuples(st.just("inject"), st.integers(0, 100_000), st.binary(min_size=1, max_size=6)),
+    st.tuples(st.just("blank_value"), st.integers(0, 10_000)),
+    st.tuples(st.just("case"), st.integers(0, 10_000)),
+    st.tuples(st.just("crlf"), st.just(0)),
+    st.tuples(st.just("replace_value"), st.integers(0, 10_000),
+              st.sampled_from(["-1", "0", "1e999", "'x'", "", "nan", "61", "-0", "1e-320"])),
+)  # fmt: skip
+
+
+def _apply(data: bytes, op) -> bytes:
+    kind = op[0]
+    lines = data.split(b"\n")
+    n = len(lines)
+    if kind == "truncate":
+        return data[: op[1] % (len(data) + 1)]
+    if kind == "inject":
+        at = op[1] % (len(data) + 1)
+        return data[:at] + op[2] + data[at:]
+    if kind == "crlf":
+        return data.replace(b"\r\n", b"\n").replace(b"\n", b"\r\n")
+    i = op[1] % n
+    if kind == "delete":
+        del lines[i]
+    elif kind == "duplicate":
+        lines.insert(i, lines[i])
+    elif kind == "swap":
+        j = op[2] % n
+        lines[i], lines[j] = lines[j], lines[i]
+    elif kind == "blank_value" and b"=" in lines[i]:
+        lines[i] = lines[i].split(b"=")[0] + b"="
+    elif kind == "case":
+        lines[i] = lines[i].swapcase()
+    elif kind == "replace_value" and b"=" in lines[i]:
+        lines[i] = lines[i].split(b"=")[0] + b"= " + op[2].encode()
+    return b"\n".join(lines)
+
+
+@settings(
+    max_examples=250,
+    deadline=None,
+    database=None,  # no .hypothesis/ folder in the source tree
+    suppress_health_check=[HealthCheck.too_slow],
+)
+@given(source=st.sampled_from(range(len(_SOURCES))), ops=st.lists(_ops, min_size=1, max_size=6))
+def test_mangled_files_give_tirdata_or_tirerror(source, ops):
+    data = _SOURCES[source]
+    for op in ops:
+        data = _apply(data, op)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "mangled.tir")
+        with open(path, "wb") as handle:
+            handle.write(data)
+        try:
+            tir = read_tir(path)
+        except TirError as exc:
+            assert "mangled.tir" in str(exc)
+            return
+        assert tir.fittyp in (6, 61, 62)
+        assert all(isinstance(v, float) and math.isfinite(v) for v in tir.params.values())
+        # whatever was accepted is written and read back to the same parameters
+        out = os.path.join(tmp, "out.tir")
+        write_tir(tir, out)
+        back = read_tir(out)
+        assert back.params == tir.params and back.fittyp == tir.fittyp
+
+
+def test_params_holding_fittyp_are_written_once(tmp_path):
+    # e.g. TirData rebuilt from TireModel.params, which carries FITTYP as a number
+    tir = read_tir(MF61)
+    with_fittyp = TirData(tir.path, tir.fittyp, {**tir.params, "FITTYP": 61.0}, tir.strings)
+    write_tir(with_fittyp, tmp_path / "f.tir")
+    text = (tmp_path / "f.tir").read_text()
+    assert len(re.findall(r"^FITTYP\s*=", text, re.M)) == 1
+    assert read_tir(tmp_path / "f.tir").params == tir.params
+    with pytest.raises(ValueError, match="FITTYP"):
+        with_fittyp.with_params({"FITTYP": 62.0})
+
+
+def test_describe_gives_units():
+    from tire_model_ros.model.params import describe
+
+    assert "[N]" in describe("fnomin") and "[Pa]" in describe("IP_NOM")
+    with pytest.raises(KeyError):
+        describe("NOT_A_COEFFICIENT")
+
+
+def test_writer_refuses_content_that_would_not_read_back(tmp_path):
+    tir = read_tir(MF61)
+    for bad in (
+        TirData(None, 61, {**tir.params, "PDY1": math.inf}),
+        TirData(None, 61, {**tir.params, "BAD KEY": 1.0}),
+        TirData(None, 63, dict(tir.params)),
+        TirData(None, 61, dict(tir.params), {"TYRESIDE": 'it\'s "odd"'}),
+    ):
+        with pytest.raises(ValueError):
+            write_tir(bad, tmp_path / "bad.tir")
+    assert list(tmp_path.iterdir()) == []  # nothing written, no temporary left
+
+
+def test_unknown_keys_are_kept_whatever_they_hold(tmp_path):
+    text = MF61.read_text().replace("PDY2 ", "MY_FLAG = YES ! vendor\nMY_GAIN = 2.5\nPDY2 ")
+    (tmp_path / "u.tir").write_text(text)
+    tir = read_tir(tmp_path / "u.tir")
+    assert tir.strings["MY_FLAG"] == "YES" and tir.params["MY_GAIN"] == 2.5
+    assert tir.extra_sections["MY_GAIN"] == "LATERAL_COEFFICIENTS"
+    write_tir(tir, tmp_path / "u2.tir")
+    back = read_tir(tmp_path / "u2.tir")
+    assert back.strings == tir.strings and back.params == tir.params
+    assert back.extra_sections["MY_FLAG"] == "LATERAL_COEFFICIENTS"
