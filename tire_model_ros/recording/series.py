@@ -57,19 +57,31 @@ class WheelSeries:
         n = len(self.t)
         for f in fields(self):
             value = getattr(self, f.name)
-            if isinstance(value, np.ndarray) or (value is not None and f.name not in ("prefix", "meta")):
-                arr = np.asarray(value, dtype=np.float64)
-                if arr.shape != (n,):
-                    raise ValueError(f"{self.prefix}: channel {f.name} has shape {arr.shape}, expected ({n},)")
-                setattr(self, f.name, arr)
+            if value is None or f.name in ("prefix", "meta"):
+                continue
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.shape != (n,):
+                raise ValueError(
+                    f"{self.prefix}: channel {f.name} has shape {arr.shape}, expected ({n},)"
+                )
+            setattr(self, f.name, arr)
 
     def __len__(self) -> int:
         return len(self.t)
 
     def select(self, mask: np.ndarray) -> WheelSeries:
-        """The samples where ``mask`` is true (a boolean mask or an index array)."""
+        """The samples where ``mask`` is true (a boolean mask or an index array).
+
+        Per-sample arrays in ``meta`` (same length as ``t``, e.g. exact ``t_ns`` stamps) are
+        selected too; other metadata is copied as is.
+        """
+        n = len(self)
         kwargs = {}
         for f in fields(self):
             value = getattr(self, f.name)
             kwargs[f.name] = value[mask] if isinstance(value, np.ndarray) else value
+        kwargs["meta"] = {
+            k: v[mask] if isinstance(v, np.ndarray) and v.shape[:1] == (n,) else v
+            for k, v in self.meta.items()
+        }
         return WheelSeries(**kwargs)

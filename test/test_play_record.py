@@ -1,0 +1,264 @@
+"""``tire-model play`` / ``tire-model record``: a real player process publishes a bag into a
+real recorder process (rclpy, separate processes, loopback only); the recorded bag equals the
+original, stamps and values. The play schedule is checked without ROS."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tire_model_ros.recording.bag import RecordingError, read_raw, read_recording, write_recording
+from tire_model_ros.recording.play import load_schedule, select_topics
+from tire_model_ros.recording.series import WheelSeries
+
+NS = 1_000_000_000
+T0 = 1_700_000_000 * NS
+INPUTS = ("slip", "load", "pressure", "temperature", "velocity")
+CHANNELS = (
+    "kappa",
+    "alpha",
+    "gamma",
+    "Fz",
+    "p",
+    "T",
+    "Vx",
+    "Fx",
+    "Fy",
+    "Fz_meas",
+    "Mx",
+    "My",
+    "Mz",
+)
+
+
+def wheel(prefix: str, n: int, seed: int, dt_ns: int = 10_000_000) -> WheelSeries:
+    rng = np.random.default_rng(seed)
+    t_ns = T0 + np.arange(n, dtype=np.int64) * dt_ns + rng.integers(0, 1000, n)
+    c = lambda: rng.normal(size=n)  # noqa: E731
+    return WheelSeries(
+        prefix,
+        t_ns / NS,
+        c(),
+        c(),
+        c(),
+        4000 + c(),
+        p=2e5 + c(),
+        T=30 + c(),
+        Vx=10 + c(),
+        Fx=c(),
+        Fy=c(),
+        Fz_meas=c(),
+        Mx=c(),
+        My=c(),
+        Mz=c(),
+        meta={"t_ns": t_ns},
+    )
+
+
+def assert_same(a: WheelSeries, b: WheelSeries) -> None:
+    np.testing.assert_array_equal(a.meta["t_ns"], b.meta["t_ns"])
+    for name in CHANNELS:
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            np.testing.assert_array_equal(x, y, err_msg=name)
+
+
+# ----------------------------------------------------------------------------- no ROS
+
+
+def test_schedule_order_and_topic_choice(tmp_path):
+    w = wheel("/car/fl", 20, 1)
+    write_recording(tmp_path / "b", [w, wheel("/car/fr", 20, 2)], rates={"temperature": 20})
+    topics = list(read_raw(tmp_path / "b", lambda _t: False).all_topics)
+    chosen = select_topics(topics, None, measured=False)
+    assert chosen == sorted(f"/car/{s}/{c}" for s in ("fl", "fr") for c in INPUTS)
+    assert "/car/fl/measured_forces" in select_topics(topics, ["/car/fl"], measured=True)
+    assert all(t.startswith("/car/fl/") for t in select_topics(topics, ["/car/fl"], False))
+    with pytest.raises(RecordingError, match="no wheel /car/rr"):
+        select_topics(topics, ["/car/rr"], False)
+
+    sched = load_schedule(tmp_path / "b", wheels=["/car/fl"])
+    assert len(sched) == 20 * 4 + len(read_raw(tmp_path / "b").topics["/car/fl/temperature"])
+    assert np.all(np.diff(sched.stamp_ns) >= 0), "not in header-stamp order"
+    names = [sched.topics[i].rpartition("/")[2] for i in sched.topic_idx]
+    # every stamp group ends with its slip: the node sees load, p, T, Vx first
+    for k, stamp in enumerate(w.meta["t_ns"]):
+        group = [names[i] for i in np.flatnonzero(sched.stamp_ns == stamp)]
+        assert group[-1] == "slip" and group.count("slip") == 1, (k, group)
+        assert set(group[:-1]) <= {"load", "pressure", "temperature", "velocity"}
+        assert {"load", "pressure", "velocity"} <= set(group[:-1])
+    # the bytes are the bag's own: the first message decodes to the first stamp
+    first = np.frombuffer(sched.raw_of(0), np.uint8)
+    sec, nsec = first[4:12].copy().view("<u4")
+    assert int(sec) * NS + int(nsec) == w.meta["t_ns"][0]
+
+
+# ----------------------------------------------------------------------------- ROS
+
+ROOT = Path(__file__).resolve().parent.parent
+TOOL = [str(Path(sys.executable).parent / "tire-model")]
+
+
+@pytest.fixture
+def ros_env():
+    """A ROS domain of our own on loopback (test/ros_util.py: lock per domain id)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import ros_util
+
+    return ros_util.ros_env(ros_util.claim_domain_id())
+
+
+def start(args, env, log: Path) -> subprocess.Popen:
+    return subprocess.Popen(
+        [*TOOL, *args], env=env, cwd=ROOT, stdout=log.open("w"), stderr=subprocess.STDOUT
+    )
+
+
+def wait_for_line(log: Path, text: str, timeout: float) -> None:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if text in log.read_text():
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"{text!r} not in {log}:\n{log.read_text()}")
+
+
+def finish(proc: subprocess.Popen, log: Path, timeout: float = 30) -> str:
+    try:
+        rc = proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+        raise AssertionError(f"timed out:\n{log.read_text()}") from None
+    out = log.read_text()
+    assert rc == 0, out
+    return out
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(60)
+def test_play_into_recorder_timed(tmp_path, ros_env):
+    """Timed playback at 4x into a recorder that stops after --count messages."""
+    wheels = [wheel("/car/fl", 60, 1), wheel("/car/fr", 60, 2)]  # 0.6 s of data
+    write_recording(tmp_path / "src", wheels, rates={"temperature": 20})
+    n_msgs = sum(len(t) for t in read_raw(tmp_path / "src").topics.values())
+    rec_log, play_log = tmp_path / "rec.log", tmp_path / "play.log"
+    rec = start(
+        [
+            "record",
+            "-o",
+            str(tmp_path / "out"),
+            "--count",
+            str(n_msgs),
+            "--topics",
+            *[f"/car/{s}/{c}" for s in ("fl", "fr") for c in (*INPUTS, "measured_forces")],
+        ],
+        ros_env,
+        rec_log,
+    )
+    wait_for_line(rec_log, "recording 12 topic(s)", 30)
+    t0 = time.monotonic()
+    player = start(
+        ["play", str(tmp_path / "src"), "--rate", "4", "--measured", "--wait", "10"],
+        ros_env,
+        play_log,
+    )
+    assert f"published {n_msgs} messages" in finish(player, play_log)
+    played_s = time.monotonic() - t0
+    assert "recorded" in finish(rec, rec_log)
+    assert played_s >= 0.59 / 4  # the timing was kept (scaled), not a burst
+    got = read_recording(tmp_path / "out")
+    assert sorted(got) == ["/car/fl", "/car/fr"]
+    for w in wheels:
+        assert_same(got[w.prefix], read_recording(tmp_path / "src")[w.prefix])
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")], "temp dir left"
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(60)
+def test_play_fast_recorder_stopped_by_sigint(tmp_path, ros_env):
+    """--fast playback of one wheel's inputs; the recorder, stopped by SIGINT, closes its
+    lone .mcap file atomically with every message."""
+    w = wheel("/rig/wheel", 100, 3)
+    write_recording(tmp_path / "src.mcap", [w, wheel("/rig/other", 10, 4)])
+    rec_log, play_log = tmp_path / "rec.log", tmp_path / "play.log"
+    rec = start(
+        [
+            "record",
+            "-o",
+            str(tmp_path / "out.mcap"),
+            "--topics",
+            *[f"/rig/wheel/{c}" for c in INPUTS],
+        ],
+        ros_env,
+        rec_log,
+    )
+    wait_for_line(rec_log, "recording 5 topic(s)", 30)
+    player = start(
+        ["play", str(tmp_path / "src.mcap"), "--fast", "--wheels", "/rig/wheel", "--wait", "10"],
+        ros_env,
+        play_log,
+    )
+    assert "published 500 messages" in finish(player, play_log)
+    time.sleep(0.5)  # acknowledged by the end of play; let the recorder drain its queue
+    assert not (tmp_path / "out.mcap").exists(), "bag visible before the recorder closed it"
+    rec.send_signal(signal.SIGINT)
+    out = finish(rec, rec_log)
+    assert "/rig/wheel/slip: 100" in out
+    raw = read_raw(tmp_path / "out.mcap")
+    assert sorted(raw.all_topics) == sorted(f"/rig/wheel/{c}" for c in INPUTS)
+    src = read_raw(tmp_path / "src.mcap")
+    for topic, t in raw.topics.items():
+        mine = sorted(t.message(i) for i in range(len(t)))
+        theirs = sorted(src.topics[topic].message(i) for i in range(len(src.topics[topic])))
+        assert mine == theirs, topic  # bit for bit
+        stamps = np.sort(np.asarray(t.log_ns))  # log time = header stamp
+        np.testing.assert_array_equal(stamps, w.meta["t_ns"])
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(60)
+def test_record_duration_and_errors(tmp_path, ros_env):
+    log = tmp_path / "rec.log"
+    t0 = time.monotonic()
+    finish(
+        start(
+            ["record", "-o", str(tmp_path / "empty"), "--wheels", "/car/fl", "--duration", "0.5"],
+            ros_env,
+            log,
+        ),
+        log,
+    )
+    assert time.monotonic() - t0 >= 0.5
+    assert read_raw(tmp_path / "empty").all_topics == {
+        "/car/fl/forces": ("geometry_msgs/msg/WrenchStamped", 0)
+    }
+    # SIGTERM closes the bag like SIGINT
+    rec = start(["record", "-o", str(tmp_path / "term.mcap"), "--wheels", "/car/fl"], ros_env, log)
+    wait_for_line(log, "recording 1 topic(s)", 30)
+    rec.send_signal(signal.SIGTERM)
+    assert "/car/fl/forces: 0" in finish(rec, log)
+    assert "/car/fl/forces" in read_raw(tmp_path / "term.mcap").all_topics
+    # refuses an existing output, an unknown topic type, and a bag without wheels to play
+    for args, message in [
+        (
+            ["record", "-o", str(tmp_path / "empty"), "--wheels", "/a", "--duration", "1"],
+            "exists already",
+        ),
+        (["record", "-o", str(tmp_path / "x"), "--topics", "/a/odd"], "unknown type"),
+        (["play", str(tmp_path / "empty")], "no input topics to play"),
+        (["play", str(tmp_path / "missing")], "no such file"),
+    ]:
+        proc = subprocess.run(
+            [*TOOL, *args], env=ros_env, cwd=ROOT, capture_output=True, text=True, timeout=30
+        )
+        assert proc.returncode == 1 and message in proc.stderr, (args, proc.stderr)
+        assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "x").exists()

@@ -1,0 +1,181 @@
+"""Play a recording's input topics into ROS 2 with their original timing (rclpy; ROS glue).
+
+The CDR bytes from the bag are published as they are (``publish`` of raw bytes), so header
+stamps and values reach subscribers bit for bit. The schedule is pure (``schedule``) and
+tested without ROS; ``play`` only sleeps and publishes.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from tire_model_ros.recording import cdr
+from tire_model_ros.recording.bag import CHANNEL_TYPES, OPTIONAL, RawBag, RecordingError, read_raw
+from tire_model_ros.recording.ros_types import msg_class
+
+INPUTS = ("load", *OPTIONAL, "slip")  # slip last: at equal stamps the inputs come first
+_NS = 1_000_000_000
+
+
+@dataclass
+class Schedule:
+    """Messages to publish, in order: ``topics[topic_idx[i]]`` gets ``raw[...]`` at
+    ``stamp_ns[i]``; ``raw_of(i)`` gives the bytes."""
+
+    topics: list[str]
+    msgtypes: list[str]
+    topic_idx: np.ndarray
+    msg_idx: np.ndarray
+    stamp_ns: np.ndarray
+    bag: RawBag
+
+    def __len__(self) -> int:
+        return len(self.stamp_ns)
+
+    def raw_of(self, i: int) -> bytes:
+        return self.bag.topics[self.topics[self.topic_idx[i]]].message(int(self.msg_idx[i]))
+
+
+def _channel_rank(topic: str) -> int:
+    channel = topic.rpartition("/")[2]
+    return INPUTS.index(channel) if channel in INPUTS else len(INPUTS) - 1  # measured ~ slip-1
+
+
+def select_topics(
+    all_topics: Sequence[str], wheels: Sequence[str] | None, measured: bool
+) -> list[str]:
+    """Input topics of every wheel (a prefix with ``P/slip``), optionally measured_forces."""
+    channels = set(INPUTS) | ({"measured_forces"} if measured else set())
+    prefixes = {t.rpartition("/")[0] for t in all_topics if t.endswith("/slip")}
+    if wheels is not None:
+        if missing := sorted(set(wheels) - prefixes):
+            raise RecordingError(f"no wheel {', '.join(missing)} in the bag (no P/slip topic)")
+        prefixes = set(wheels)
+    return sorted(
+        t
+        for t in all_topics
+        if t.rpartition("/")[0] in prefixes and t.rpartition("/")[2] in channels
+    )
+
+
+def schedule(bag: RawBag) -> Schedule:
+    """All messages of ``bag`` ordered by header stamp; at equal stamps load, pressure,
+    temperature, velocity, then measured_forces, then slip (the node computes on slip and must
+    have seen the others); then bag order."""
+    topics = sorted(bag.topics)
+    parts = []
+    for i, topic in enumerate(topics):
+        raw = bag.topics[topic]
+        expected = CHANNEL_TYPES.get(topic.rpartition("/")[2])
+        if expected and raw.msgtype != expected:
+            raise RecordingError(
+                f"{bag.path}: topic {topic} has message type {raw.msgtype}, expected {expected}"
+            )
+        if len(raw) and (np.any(raw.lens < 12) or np.any(raw.buf[raw.starts + 1] != 1)):
+            raise RecordingError(f"{bag.path}: topic {topic}: messages are not CDR_LE stamped")
+        stamps = cdr.header_stamps(raw.buf, raw.starts)
+        rank = _channel_rank(topic) * 2 + (1 if topic.endswith("/slip") else 0)
+        parts.append((np.full(len(raw), i), np.arange(len(raw)), stamps, np.full(len(raw), rank)))
+    if not parts:
+        raise RecordingError(f"{bag.path}: nothing to play")
+    t_idx, m_idx, stamp, rank = (np.concatenate(x) for x in zip(*parts, strict=True))
+    order = np.lexsort((m_idx, t_idx, rank, stamp))
+    return Schedule(
+        topics,
+        [bag.topics[t].msgtype for t in topics],
+        t_idx[order],
+        m_idx[order],
+        stamp[order],
+        bag,
+    )
+
+
+def load_schedule(
+    path: str | os.PathLike, wheels: Sequence[str] | None = None, measured: bool = False
+) -> Schedule:
+    """Read the bag's topics to play and order them."""
+    listing = read_raw(path, lambda _t: False)  # topic table only
+    chosen = set(select_topics(list(listing.all_topics), wheels, measured))
+    if not chosen:
+        raise RecordingError(f"{path}: no input topics to play (no P/slip topic)")
+    return schedule(read_raw(path, lambda t: t in chosen))
+
+
+def play(
+    path: str | os.PathLike,
+    *,
+    rate: float = 1.0,
+    loop: bool = False,
+    wheels: Sequence[str] | None = None,
+    measured: bool = False,
+    queue: int = 1000,
+    wait_subscribers_s: float = 2.0,
+    should_stop: Callable[[], bool] = lambda: False,
+    log: Callable[[str], None] = print,
+) -> int:
+    """Publish the recording; return how many messages were published.
+
+    ``rate`` scales the original timing (2 = twice as fast); 0 publishes as fast as possible
+    (reliable QoS, history depth ``queue`` on the publisher). Waits up to
+    ``wait_subscribers_s`` for a subscriber on every topic before starting, and for all
+    messages to be acknowledged at the end.
+    """
+    import rclpy
+    from rclpy.duration import Duration
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    if not rate >= 0 or not np.isfinite(rate):
+        raise ValueError(f"--rate must be >= 0, got {rate}")
+    sched = load_schedule(path, wheels, measured)
+    qos = QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=queue, reliability=ReliabilityPolicy.RELIABLE
+    )
+    own_context = not rclpy.ok()
+    if own_context:
+        rclpy.init()
+    node = rclpy.create_node("tire_model_player")
+    sent = 0
+    try:
+        pubs = [
+            node.create_publisher(msg_class(mt), t, qos)
+            for t, mt in zip(sched.topics, sched.msgtypes, strict=True)
+        ]
+        deadline = time.monotonic() + wait_subscribers_s
+        while (
+            any(p.get_subscription_count() == 0 for p in pubs)
+            and time.monotonic() < deadline
+            and not should_stop()
+        ):
+            time.sleep(0.01)
+        log(
+            f"playing {len(sched)} messages on {len(pubs)} topics from {path} "
+            f"(rate {'max' if rate == 0 else rate})"
+        )
+        raw = [sched.raw_of(i) for i in range(len(sched))]
+        rel_s = (sched.stamp_ns - sched.stamp_ns[0]) / _NS
+        t_idx = sched.topic_idx.tolist()
+        while True:
+            start = time.monotonic()
+            for i in range(len(raw)):
+                if should_stop():
+                    return sent
+                if rate > 0:
+                    delay = start + rel_s[i] / rate - time.monotonic()
+                    if delay > 0:
+                        time.sleep(delay)
+                pubs[t_idx[i]].publish(raw[i])
+                sent += 1
+            if not loop:
+                break
+        for p in pubs:
+            p.wait_for_all_acked(Duration(seconds=5.0))
+        return sent
+    finally:
+        node.destroy_node()
+        if own_context:
+            rclpy.try_shutdown()

@@ -1,0 +1,136 @@
+"""Record topics (the node's ``P/forces``, or any INTERFACE topic) to a new bag (rclpy glue).
+
+Messages are taken as serialized CDR bytes (no deserialisation), logged with their
+header.stamp as log time, and streamed into a ``BagWriter`` in a temp folder beside the
+target; the bag is renamed into place when recording stops (SIGINT/SIGTERM, ``duration``,
+``count``), so an interrupted recorder never leaves a half-written bag under the target name.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+
+from tire_model_ros.recording import cdr
+from tire_model_ros.recording.bag import CHANNEL_TYPES, BagWriter
+from tire_model_ros.recording.ros_types import msg_class
+
+
+def resolve_topics(topics: Sequence[str] = (), wheels: Sequence[str] = ()) -> dict[str, str]:
+    """topic -> message type. ``TOPIC`` must end with an INTERFACE channel name
+    (slip, load, pressure, temperature, velocity, forces, measured_forces); ``TOPIC:TYPE``
+    gives the type explicitly. A wheel prefix P records ``P/forces``."""
+    out: dict[str, str] = {}
+    for prefix in wheels:
+        out[f"{prefix.rstrip('/')}/forces"] = CHANNEL_TYPES["forces"]
+    for spec in topics:
+        topic, _, msgtype = spec.partition(":")
+        if not msgtype:
+            channel = topic.rpartition("/")[2]
+            if channel not in CHANNEL_TYPES:
+                raise ValueError(
+                    f"topic {topic}: unknown type (not an INTERFACE channel "
+                    f"{', '.join(CHANNEL_TYPES)}); give it as TOPIC:pkg/msg/Type"
+                )
+            msgtype = CHANNEL_TYPES[channel]
+        if not topic.startswith("/"):
+            raise ValueError(f"topic {topic}: give absolute topic names (starting with '/')")
+        out[topic] = msgtype
+    if not out:
+        raise ValueError("nothing to record: give --topics and/or --wheels")
+    return out
+
+
+def _stamp_ns(data: bytes, fallback_ns: int) -> int:
+    """Header stamp of a CDR_LE message starting with std_msgs/Header, else ``fallback_ns``."""
+    if len(data) >= 12 and data[1] == 1:
+        buf = np.frombuffer(data, np.uint8)
+        return int(cdr.header_stamps(buf, np.zeros(1, np.int64))[0])
+    return fallback_ns
+
+
+def record(
+    out: str | os.PathLike,
+    topics: Mapping[str, str],
+    *,
+    duration_s: float | None = None,
+    count: int | None = None,
+    overwrite: bool = False,
+    storage: str = "mcap",
+    queue: int = 1000,
+    log: Callable[[str], None] = print,
+) -> dict[str, int]:
+    """Record until SIGINT/SIGTERM, ``duration_s`` seconds, or ``count`` messages in total.
+
+    Returns messages recorded per topic. The bag is closed and renamed into place in every
+    one of these cases, and on an unexpected error too (what was recorded is kept).
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.signals import SignalHandlerOptions
+
+    if count is not None and count <= 0:
+        raise ValueError(f"--count must be positive, got {count}")
+    if duration_s is not None and not duration_s > 0:
+        raise ValueError(f"--duration must be positive, got {duration_s}")
+    classes = {}
+    for topic, msgtype in topics.items():
+        try:
+            classes[topic] = msg_class(msgtype)
+        except ValueError as exc:
+            raise ValueError(f"topic {topic}: {exc}") from None
+    stop = {"flag": False}
+
+    def on_signal(signum, _frame) -> None:
+        stop["flag"] = True
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    writer = BagWriter(out, overwrite=overwrite, storage=storage)
+    context = rclpy.Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("tire_model_recorder", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    total = {"n": 0}
+    try:
+        for topic, msgtype in topics.items():
+            writer.add_topic(topic, msgtype)
+        qos = QoSProfile(
+            history=HistoryPolicy.KEEP_LAST, depth=queue, reliability=ReliabilityPolicy.RELIABLE
+        )
+        for topic in topics:
+
+            def callback(data: bytes, topic: str = topic) -> None:
+                if count is not None and total["n"] >= count:
+                    return
+                writer.write(topic, _stamp_ns(data, time.time_ns()), data)
+                total["n"] += 1
+
+            node.create_subscription(classes[topic], topic, callback, qos, raw=True)
+        log(f"recording {len(topics)} topic(s) to {out}")
+        end = None if duration_s is None else time.monotonic() + duration_s
+        while not stop["flag"] and (count is None or total["n"] < count):
+            if end is not None and time.monotonic() >= end:
+                break
+            executor.spin_once(timeout_sec=0.05)
+        writer.close()
+        log(f"recorded {total['n']} messages to {out}")
+        return dict(writer.counts)
+    except BaseException:
+        # keep what was recorded: a valid, shorter bag beats none; drop it only if unusable
+        try:
+            writer.close()
+        except Exception:
+            writer.abort()
+        raise
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        for s, handler in old.items():
+            signal.signal(s, handler)

@@ -1,0 +1,16 @@
+"""ROS message classes from type names (``pkg/msg/Name``), without rosidl_runtime_py."""
+
+from __future__ import annotations
+
+import importlib
+
+
+def msg_class(msgtype: str):
+    """The rclpy message class of ``pkg/msg/Name``; ValueError naming the type if unknown."""
+    parts = msgtype.split("/")
+    if len(parts) != 3 or parts[1] != "msg" or not all(parts):
+        raise ValueError(f"message type {msgtype!r}: expected pkg/msg/Name")
+    try:
+        return getattr(importlib.import_module(f"{parts[0]}.msg"), parts[2])
+    except (ImportError, AttributeError):
+        raise ValueError(f"message type {msgtype} is not installed") from None
