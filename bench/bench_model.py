@@ -1,0 +1,99 @@
+"""Benchmark of the Magic Formula evaluator against the targets of the Foundation issue.
+
+- batch: combined-slip Fx, Fy, Mz (with Mx, My) for 1e6 samples on one core, median of runs,
+  target >= 5 million evaluations per second;
+- single sample: ``TireModel.evaluate_one`` as the node calls it, median, target <= 20 us.
+
+Run: ``NUMBA_NUM_THREADS=1 .venv/bin/python bench/bench_model.py [--tir FILE] [--runs N]``.
+Both wall-clock and process CPU time are printed: on a shared machine the CPU time is the
+fairer figure for one core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import numpy as np
+
+DEFAULT_TIR = (
+    Path(__file__).resolve().parents[1]
+    / ".."
+    / "shared"
+    / "reference"
+    / "tir"
+    / "MagicFormula61_Parameters.tir"
+).resolve()
+
+
+def _median_time(fn, runs: int) -> tuple[float, float]:
+    wall, cpu = [], []
+    for _ in range(runs):
+        w0, c0 = time.perf_counter(), time.process_time()
+        fn()
+        cpu.append(time.process_time() - c0)
+        wall.append(time.perf_counter() - w0)
+    return float(np.median(wall)), float(np.median(cpu))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--tir", default=str(DEFAULT_TIR))
+    ap.add_argument("--runs", type=int, default=7)
+    ap.add_argument("-n", type=int, default=1_000_000)
+    args = ap.parse_args()
+
+    t0 = time.perf_counter()
+    from tire_model_ros.model import TireModel
+
+    model = TireModel.from_file(args.tir)
+    t1 = time.perf_counter()
+    model.evaluate(4000.0, 0.0, 0.0)
+    model.evaluate(4000.0, 0.0, 0.0, full=False)
+    model.evaluate_one(4000.0, 0.0, 0.0, 0.0, 16.0, 2.5e5, 25.0)
+    t2 = time.perf_counter()
+    print(f"import + read_tir: {t1 - t0:.2f} s; first calls (compile or cache): {t2 - t1:.2f} s")
+
+    rng = np.random.default_rng(0)
+    n = args.n
+    P = model.params
+    Fz = rng.uniform(0.3, 1.8, n) * P["FNOMIN"]
+    kappa = rng.uniform(-0.3, 0.3, n)
+    alpha = rng.uniform(-0.25, 0.25, n)
+    gamma = rng.uniform(-0.06, 0.06, n)
+    Vx = rng.uniform(5.0, 40.0, n)
+    p = rng.uniform(0.8, 1.2, n) * P["NOMPRES"]
+    T = rng.uniform(10.0, 90.0, n)
+
+    for label, full in (("forces+moments (full=False)", False), ("all outputs (full=True)", True)):
+        wall, cpu = _median_time(
+            lambda full=full: model.evaluate(Fz, kappa, alpha, gamma, Vx, p, T, full=full),
+            args.runs,
+        )
+        print(
+            f"batch {label}: {n / wall / 1e6:.2f} M/s wall, {n / cpu / 1e6:.2f} M/s CPU "
+            f"(target >= 5 M/s)"
+        )
+
+    m = 20000
+    idx = rng.integers(0, n, m)
+    one = model.evaluate_one
+    samples = [(Fz[i], kappa[i], alpha[i], gamma[i], Vx[i], p[i], T[i]) for i in idx]
+    times = []
+    for s in samples:
+        c0 = time.perf_counter()
+        one(*s)
+        times.append(time.perf_counter() - c0)
+    print(
+        f"evaluate_one: median {np.median(times) * 1e6:.2f} us, "
+        f"99th percentile {np.percentile(times, 99) * 1e6:.2f} us (target <= 20 us)"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,236 @@
+"""TireModel API: broadcasting, single-sample path, immutability, errors, NaN, eval CLI."""
+
+from __future__ import annotations
+
+import csv
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tire_model_ros.model import MFOutput, TireModel, read_tir
+from tire_model_ros.model import coef as c
+
+ROOT = Path(__file__).resolve().parents[1]
+TIRS = (ROOT / ".." / "shared" / "reference" / "tir").resolve()
+TIR61 = TIRS / "MagicFormula61_Parameters.tir"
+TIR52 = TIRS / "MagicFormula52_Parameters.tir"
+pytestmark = pytest.mark.skipif(not TIR61.is_file(), reason=f"{TIR61} missing")
+
+
+@pytest.fixture(scope="module")
+def model() -> TireModel:
+    return TireModel.from_file(TIR61)
+
+
+def _random_inputs(n: int, seed: int = 1):
+    rng = np.random.default_rng(seed)
+    return (
+        rng.uniform(0.0, 14000.0, n),  # Fz
+        rng.uniform(-1.2, 1.2, n),  # kappa
+        rng.uniform(-0.5, 0.5, n),  # alpha
+        rng.uniform(-0.12, 0.12, n),  # gamma
+        rng.uniform(-3.0, 40.0, n),  # Vx, low speed and reverse included
+        rng.uniform(1.5e5, 4.2e5, n),  # p
+        rng.uniform(-10.0, 100.0, n),  # T
+    )
+
+
+def test_coefficient_index_matches_names() -> None:
+    assert len(set(c.NAMES)) == len(c.NAMES) == c.N_COEF
+    for k, name in enumerate(c.NAMES):
+        assert getattr(c, name) == k, name
+
+
+def test_broadcasting(model) -> None:
+    Fz = np.array([[2000.0], [6752.0], [9000.0]])
+    kappa = np.array([-0.1, 0.0, 0.02, 0.3])
+    out = model.evaluate(Fz, kappa, 0.05, gamma=0.02)
+    assert isinstance(out, MFOutput)
+    assert out.Fx.shape == out.Mz.shape == out.Re.shape == (3, 4)
+    for i in range(3):
+        for j in range(4):
+            one = model.evaluate(Fz[i, 0], kappa[j], 0.05, 0.02)
+            assert one.Fx.shape == ()
+            assert out.Fx[i, j] == one.Fx and out.Mz[i, j] == one.Mz and out.Re[i, j] == one.Re
+    # defaults: Vx -> LONGVL, p -> INFLPRES, T -> NOMTEMP
+    P = model.params
+    explicit = model.evaluate(Fz, kappa, 0.05, 0.02, P["LONGVL"], P["INFLPRES"], P["NOMTEMP"])
+    np.testing.assert_array_equal(explicit.Fy, out.Fy)
+    forces_only = model.evaluate(Fz, kappa, 0.05, gamma=0.02, full=False)
+    np.testing.assert_array_equal(forces_only.Fy, out.Fy)
+    assert forces_only.Re is None
+
+
+@pytest.mark.parametrize("limits", [True, False])
+def test_evaluate_one_equals_evaluate(model, limits) -> None:
+    Fz, kappa, alpha, gamma, Vx, p, T = _random_inputs(300)
+    warm = model.with_params({"TTX1": 0.2, "TTY3": -0.1, "TTY2": 0.3})
+    batch = warm.evaluate(Fz, kappa, alpha, gamma, Vx, p, T, limits=limits)
+    for i in range(Fz.size):
+        one = warm.evaluate_one(Fz[i], kappa[i], alpha[i], gamma[i], Vx[i], p[i], T[i], limits)
+        assert isinstance(one, tuple) and len(one) == 6
+        expected = tuple(getattr(batch, k)[i] for k in ("Fx", "Fy", "Fz", "Mx", "My", "Mz"))
+        assert one == expected, i
+
+
+def test_with_params_is_a_new_model(model) -> None:
+    before = model.evaluate(5000.0, 0.05, 0.05)
+    other = model.with_params({"PDX1": 1.5, "lmuy": 0.8})  # names are case-insensitive
+    assert other is not model
+    assert other.params["PDX1"] == 1.5 and other.params["LMUY"] == 0.8
+    assert model.params["PDX1"] == pytest.approx(1.1632)
+    assert other.tir.params["PDX1"] == 1.5 and model.tir.params["PDX1"] == pytest.approx(1.1632)
+    after = model.evaluate(5000.0, 0.05, 0.05)
+    assert after.Fx == before.Fx and after.Fy == before.Fy
+    changed = other.evaluate(5000.0, 0.05, 0.05)
+    assert changed.Fx != before.Fx and changed.Fy != before.Fy
+    with pytest.raises(TypeError):
+        model.params["PDX1"] = 2.0  # type: ignore[index]
+    with pytest.raises(ValueError):
+        model.coefficient_vector[c.PDX1] = 2.0
+    with pytest.raises(AttributeError):
+        model.tir = other.tir  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    ("updates", "key"),
+    [
+        ({"NOT_A_COEFFICIENT": 1.0}, "NOT_A_COEFFICIENT"),
+        ({"PDY1": math.nan}, "PDY1"),
+        ({"PKX1": math.inf}, "PKX1"),
+        ({"PCX1": 0.0}, "PCX1"),
+        ({"PCY1": -1.0}, "PCY1"),
+        ({"FNOMIN": -100.0}, "FNOMIN"),
+        ({"NOMPRES": 0.0}, "NOMPRES"),
+        ({"NOMTEMP": 0.0}, "NOMTEMP"),
+        ({"UNLOADED_RADIUS": 0.0}, "UNLOADED_RADIUS"),
+        ({"PDX1": "abc"}, "PDX1"),
+        ({"FITTYP": 62}, "FITTYP"),
+    ],
+)
+def test_with_params_rejects_bad_values(model, updates, key) -> None:
+    with pytest.raises(ValueError, match=key):
+        model.with_params(updates)
+    assert model.params["PCX1"] > 0  # unchanged
+
+
+def test_nan_and_inf_inputs_do_not_crash(model) -> None:
+    nan, inf = math.nan, math.inf
+    Fz = np.array([5000.0, nan, 5000.0, 5000.0, 5000.0, inf, 5000.0])
+    kappa = np.array([0.05, 0.05, nan, 0.05, 0.05, 0.05, inf])
+    alpha = np.array([0.05, 0.05, 0.05, nan, 0.05, 0.05, 0.05])
+    p = np.array([2.6e5, 2.6e5, 2.6e5, 2.6e5, nan, 2.6e5, 2.6e5])
+    for limits in (True, False):
+        out = model.evaluate(Fz, kappa, alpha, 0.0, 16.6, p, limits=limits)
+        assert np.isfinite(out.Fx[0]) and np.isfinite(out.Fy[0]) and np.isfinite(out.Mz[0])
+        assert np.isnan(out.Fx[1]) and np.isnan(out.Fy[1])  # NaN load: NaN forces
+        assert np.isnan(out.Fx[2]) and np.isnan(out.Fy[2])  # NaN kappa reaches Fy (combined)
+        assert np.isnan(out.Fy[3]) and np.isnan(out.Mz[3])  # NaN alpha
+        assert np.isnan(out.Fx[4]) or not limits  # NaN pressure (limits: clip keeps NaN)
+        one = model.evaluate_one(nan, 0.0, 0.0, 0.0, 16.6, 2.6e5, 25.0, limits)
+        assert all(math.isnan(v) for v in (one[0], one[1], one[5]))
+    # limits on: an infinite load or slip is saturated to the file's range -> finite force
+    sat = model.evaluate(Fz[5:], kappa[5:], alpha[5:], 0.0, 16.6, 2.6e5, limits=True)
+    assert np.all(np.isfinite(sat.Fx)) and np.all(np.isfinite(sat.Fy))
+
+
+def test_mf52_file_has_no_pressure_effect() -> None:
+    if not TIR52.is_file():
+        pytest.skip(f"{TIR52} missing")
+    m52 = TireModel.from_file(TIR52)
+    assert m52.coefficient_vector[c.FITTYP] == 6
+    Fz, kappa, alpha, gamma, Vx, _, T = _random_inputs(200, seed=3)
+    nominal = m52.evaluate(Fz, kappa, alpha, gamma, Vx, None, T, limits=False)
+    high = m52.evaluate(Fz, kappa, alpha, gamma, Vx, 1.5 * m52.params["NOMPRES"], T,
+                        limits=False)  # fmt: skip
+    for name in ("Fx", "Fy", "Mx", "My", "Mz"):
+        np.testing.assert_array_equal(getattr(high, name), getattr(nominal, name), err_msg=name)
+        assert np.all(np.isfinite(getattr(nominal, name)[Fz > 0])), name
+
+
+def test_from_file_equals_constructor(model) -> None:
+    again = TireModel(read_tir(TIR61))
+    np.testing.assert_array_equal(again.coefficient_vector, model.coefficient_vector)
+
+
+# --- tire-model eval ------------------------------------------------------------------------
+
+CLI = ROOT / ".venv" / "bin" / "tire-model"
+
+
+def _run(*args: str) -> subprocess.CompletedProcess:
+    exe = [str(CLI)] if CLI.exists() else [sys.executable, "-m", "tire_model_ros.cli"]
+    return subprocess.run([*exe, "eval", *args], capture_output=True, text=True, timeout=240)
+
+
+def _write_inputs(path: Path, with_T: bool) -> dict[str, np.ndarray]:
+    Fz, kappa, alpha, gamma, Vx, p, T = _random_inputs(25, seed=7)
+    cols = {"Fz": Fz, "kappa": kappa, "alpha": alpha, "gamma": gamma, "Vx": Vx, "p": p}
+    if with_T:
+        cols["T"] = T
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["note", *cols])  # an extra column is ignored
+        for i in range(Fz.size):
+            w.writerow(["x", *(repr(float(cols[k][i])) for k in cols)])
+    return cols
+
+
+def _read_csv(path: Path) -> dict[str, np.ndarray]:
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    return {h: np.array([float(r[k]) for r in rows[1:]]) for k, h in enumerate(rows[0])}
+
+
+@pytest.mark.parametrize("no_limits", [False, True])
+def test_eval_cli_round_trip(model, tmp_path, no_limits) -> None:
+    src = tmp_path / "in.csv"
+    dst = tmp_path / "out.csv"
+    cols = _write_inputs(src, with_T=not no_limits)
+    res = _run("--tir", str(TIR61), str(src), "-o", str(dst), *(["--no-limits"] if no_limits
+                                                                else []))  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    out = _read_csv(dst)
+    assert list(out)[: len(cols)] == list(cols) and list(out)[len(cols) :] == [
+        "Fx", "Fy", "Mx", "My", "Mz"]  # fmt: skip
+    ref = model.evaluate(cols["Fz"], cols["kappa"], cols["alpha"], cols["gamma"], cols["Vx"],
+                         cols["p"], cols.get("T"), limits=not no_limits)  # fmt: skip
+    for name in ("Fx", "Fy", "Mx", "My", "Mz"):
+        np.testing.assert_array_equal(out[name], getattr(ref, name), err_msg=name)
+    for name in cols:
+        np.testing.assert_array_equal(out[name], cols[name])
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_eval_cli_refuses_overwrite_and_bad_rows(tmp_path) -> None:
+    src = tmp_path / "in.csv"
+    dst = tmp_path / "out.csv"
+    _write_inputs(src, with_T=True)
+    dst.write_text("keep me\n")
+    res = _run("--tir", str(TIR61), str(src), "-o", str(dst))
+    assert res.returncode == 1 and "--force" in res.stderr and str(dst) in res.stderr
+    assert dst.read_text() == "keep me\n"
+    res = _run("--tir", str(TIR61), str(src), "-o", str(dst), "--force")
+    assert res.returncode == 0, res.stderr
+    assert dst.read_text().startswith("Fz,")
+
+    bad = tmp_path / "bad.csv"
+    lines = src.read_text().splitlines()
+    fields = lines[3].split(",")
+    fields[3] = "zero"  # column alpha (after the note, Fz, kappa)
+    lines[3] = ",".join(fields)
+    bad.write_text("\n".join(lines) + "\n")
+    res = _run("--tir", str(TIR61), str(bad), "-o", str(tmp_path / "o2.csv"))
+    assert res.returncode == 1
+    assert "bad.csv" in res.stderr and "line 4" in res.stderr and "'alpha'" in res.stderr
+    assert not (tmp_path / "o2.csv").exists()
+
+    nocol = tmp_path / "nocol.csv"
+    nocol.write_text("Fz,kappa,alpha\n1,0,0\n")
+    res = _run("--tir", str(TIR61), str(nocol), "-o", str(tmp_path / "o3.csv"))
+    assert res.returncode == 1 and "gamma" in res.stderr and "Vx" in res.stderr
+

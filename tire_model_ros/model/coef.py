@@ -1,0 +1,302 @@
+"""Index of the coefficient vector that the numba kernels read.
+
+The kernels take one float64 array ``P`` of coefficients. ``P[PCX1]`` is the .tir value of
+PCX1: the module-level integers below are compile-time constants to numba. Generated from
+``NAMES``; keep the two in step (``test_model_api`` checks it).
+"""
+
+from __future__ import annotations
+
+# fmt: off
+NAMES: tuple[str, ...] = (
+    # model
+    "FITTYP", "LONGVL", "VXLOW",
+    # dimension
+    "UNLOADED_RADIUS", "WIDTH", "ASPECT_RATIO", "RIM_RADIUS", "RIM_WIDTH",
+    # operating
+    "INFLPRES", "NOMPRES", "NOMTEMP",
+    # vertical
+    "FNOMIN", "VERTICAL_STIFFNESS", "BREFF", "DREFF", "FREFF", "Q_RE0", "Q_V1", "Q_V2", "Q_FZ2",
+    "Q_FCX", "Q_FCY", "Q_CAM", "PFZ1", "Q_FCY2", "Q_CAM1", "Q_CAM2", "Q_CAM3", "Q_FYS1",
+    "Q_FYS2", "Q_FYS3", "BOTTOM_OFFST", "BOTTOM_STIFF",
+    # structural
+    "LONGITUDINAL_STIFFNESS", "LATERAL_STIFFNESS", "PCFX1", "PCFX2", "PCFX3", "PCFY1", "PCFY2",
+    "PCFY3",
+    # contact
+    "Q_RA1", "Q_RA2", "Q_RB1", "Q_RB2", "Q_A1", "Q_A2",
+    # limits
+    "PRESMIN", "PRESMAX", "FZMIN", "FZMAX", "KPUMIN", "KPUMAX", "ALPMIN", "ALPMAX", "CAMMIN",
+    "CAMMAX",
+    # scaling
+    "LFZO", "LCX", "LMUX", "LEX", "LKX", "LHX", "LVX", "LCY", "LMUY", "LEY", "LKY", "LHY",
+    "LVY", "LTR", "LRES", "LXAL", "LYKA", "LVYKA", "LS", "LKYC", "LKZC", "LVMX", "LMX", "LMY",
+    "LMP", "LSGKP", "LSGAL",
+    # longitudinal
+    "PCX1", "PDX1", "PDX2", "PDX3", "PEX1", "PEX2", "PEX3", "PEX4", "PKX1", "PKX2", "PKX3",
+    "PHX1", "PHX2", "PVX1", "PVX2", "PPX1", "PPX2", "PPX3", "PPX4", "RBX1", "RBX2", "RBX3",
+    "RCX1", "REX1", "REX2", "RHX1", "PTX1", "PTX2", "PTX3",
+    # overturning
+    "QSX1", "QSX2", "QSX3", "QSX4", "QSX5", "QSX6", "QSX7", "QSX8", "QSX9", "QSX10", "QSX11",
+    "QSX12", "QSX13", "QSX14", "PPMX1",
+    # lateral
+    "PCY1", "PDY1", "PDY2", "PDY3", "PEY1", "PEY2", "PEY3", "PEY4", "PEY5", "PKY1", "PKY2",
+    "PKY3", "PKY4", "PKY5", "PKY6", "PKY7", "PHY1", "PHY2", "PHY3", "PVY1", "PVY2", "PVY3",
+    "PVY4", "PPY1", "PPY2", "PPY3", "PPY4", "PPY5", "RBY1", "RBY2", "RBY3", "RBY4", "RCY1",
+    "REY1", "REY2", "RHY1", "RHY2", "RVY1", "RVY2", "RVY3", "RVY4", "RVY5", "RVY6", "PTY1",
+    "PTY2",
+    # rolling
+    "QSY1", "QSY2", "QSY3", "QSY4", "QSY5", "QSY6", "QSY7", "QSY8",
+    # aligning
+    "QBZ1", "QBZ2", "QBZ3", "QBZ4", "QBZ5", "QBZ9", "QBZ10", "QCZ1", "QDZ1", "QDZ2", "QDZ3",
+    "QDZ4", "QDZ6", "QDZ7", "QDZ8", "QDZ9", "QDZ10", "QDZ11", "QEZ1", "QEZ2", "QEZ3", "QEZ4",
+    "QEZ5", "QHZ1", "QHZ2", "QHZ3", "QHZ4", "PPZ1", "PPZ2", "SSZ1", "SSZ2", "SSZ3", "SSZ4",
+    # turnslip
+    "PDXP1", "PDXP2", "PDXP3", "PKYP1", "PDYP1", "PDYP2", "PDYP3", "PDYP4", "PHYP1", "PHYP2",
+    "PHYP3", "PHYP4", "PECP1", "PECP2", "QDTP1", "QCRP1", "QCRP2", "QBRP1", "QDRP1",
+    # temperature
+    "TTX1", "TTX2", "TTX3", "TTX4", "TTY1", "TTY2", "TTY3", "TTY4",
+)
+
+FITTYP = 0
+LONGVL = 1
+VXLOW = 2
+UNLOADED_RADIUS = 3
+WIDTH = 4
+ASPECT_RATIO = 5
+RIM_RADIUS = 6
+RIM_WIDTH = 7
+INFLPRES = 8
+NOMPRES = 9
+NOMTEMP = 10
+FNOMIN = 11
+VERTICAL_STIFFNESS = 12
+BREFF = 13
+DREFF = 14
+FREFF = 15
+Q_RE0 = 16
+Q_V1 = 17
+Q_V2 = 18
+Q_FZ2 = 19
+Q_FCX = 20
+Q_FCY = 21
+Q_CAM = 22
+PFZ1 = 23
+Q_FCY2 = 24
+Q_CAM1 = 25
+Q_CAM2 = 26
+Q_CAM3 = 27
+Q_FYS1 = 28
+Q_FYS2 = 29
+Q_FYS3 = 30
+BOTTOM_OFFST = 31
+BOTTOM_STIFF = 32
+LONGITUDINAL_STIFFNESS = 33
+LATERAL_STIFFNESS = 34
+PCFX1 = 35
+PCFX2 = 36
+PCFX3 = 37
+PCFY1 = 38
+PCFY2 = 39
+PCFY3 = 40
+Q_RA1 = 41
+Q_RA2 = 42
+Q_RB1 = 43
+Q_RB2 = 44
+Q_A1 = 45
+Q_A2 = 46
+PRESMIN = 47
+PRESMAX = 48
+FZMIN = 49
+FZMAX = 50
+KPUMIN = 51
+KPUMAX = 52
+ALPMIN = 53
+ALPMAX = 54
+CAMMIN = 55
+CAMMAX = 56
+LFZO = 57
+LCX = 58
+LMUX = 59
+LEX = 60
+LKX = 61
+LHX = 62
+LVX = 63
+LCY = 64
+LMUY = 65
+LEY = 66
+LKY = 67
+LHY = 68
+LVY = 69
+LTR = 70
+LRES = 71
+LXAL = 72
+LYKA = 73
+LVYKA = 74
+LS = 75
+LKYC = 76
+LKZC = 77
+LVMX = 78
+LMX = 79
+LMY = 80
+LMP = 81
+LSGKP = 82
+LSGAL = 83
+PCX1 = 84
+PDX1 = 85
+PDX2 = 86
+PDX3 = 87
+PEX1 = 88
+PEX2 = 89
+PEX3 = 90
+PEX4 = 91
+PKX1 = 92
+PKX2 = 93
+PKX3 = 94
+PHX1 = 95
+PHX2 = 96
+PVX1 = 97
+PVX2 = 98
+PPX1 = 99
+PPX2 = 100
+PPX3 = 101
+PPX4 = 102
+RBX1 = 103
+RBX2 = 104
+RBX3 = 105
+RCX1 = 106
+REX1 = 107
+REX2 = 108
+RHX1 = 109
+PTX1 = 110
+PTX2 = 111
+PTX3 = 112
+QSX1 = 113
+QSX2 = 114
+QSX3 = 115
+QSX4 = 116
+QSX5 = 117
+QSX6 = 118
+QSX7 = 119
+QSX8 = 120
+QSX9 = 121
+QSX10 = 122
+QSX11 = 123
+QSX12 = 124
+QSX13 = 125
+QSX14 = 126
+PPMX1 = 127
+PCY1 = 128
+PDY1 = 129
+PDY2 = 130
+PDY3 = 131
+PEY1 = 132
+PEY2 = 133
+PEY3 = 134
+PEY4 = 135
+PEY5 = 136
+PKY1 = 137
+PKY2 = 138
+PKY3 = 139
+PKY4 = 140
+PKY5 = 141
+PKY6 = 142
+PKY7 = 143
+PHY1 = 144
+PHY2 = 145
+PHY3 = 146
+PVY1 = 147
+PVY2 = 148
+PVY3 = 149
+PVY4 = 150
+PPY1 = 151
+PPY2 = 152
+PPY3 = 153
+PPY4 = 154
+PPY5 = 155
+RBY1 = 156
+RBY2 = 157
+RBY3 = 158
+RBY4 = 159
+RCY1 = 160
+REY1 = 161
+REY2 = 162
+RHY1 = 163
+RHY2 = 164
+RVY1 = 165
+RVY2 = 166
+RVY3 = 167
+RVY4 = 168
+RVY5 = 169
+RVY6 = 170
+PTY1 = 171
+PTY2 = 172
+QSY1 = 173
+QSY2 = 174
+QSY3 = 175
+QSY4 = 176
+QSY5 = 177
+QSY6 = 178
+QSY7 = 179
+QSY8 = 180
+QBZ1 = 181
+QBZ2 = 182
+QBZ3 = 183
+QBZ4 = 184
+QBZ5 = 185
+QBZ9 = 186
+QBZ10 = 187
+QCZ1 = 188
+QDZ1 = 189
+QDZ2 = 190
+QDZ3 = 191
+QDZ4 = 192
+QDZ6 = 193
+QDZ7 = 194
+QDZ8 = 195
+QDZ9 = 196
+QDZ10 = 197
+QDZ11 = 198
+QEZ1 = 199
+QEZ2 = 200
+QEZ3 = 201
+QEZ4 = 202
+QEZ5 = 203
+QHZ1 = 204
+QHZ2 = 205
+QHZ3 = 206
+QHZ4 = 207
+PPZ1 = 208
+PPZ2 = 209
+SSZ1 = 210
+SSZ2 = 211
+SSZ3 = 212
+SSZ4 = 213
+PDXP1 = 214
+PDXP2 = 215
+PDXP3 = 216
+PKYP1 = 217
+PDYP1 = 218
+PDYP2 = 219
+PDYP3 = 220
+PDYP4 = 221
+PHYP1 = 222
+PHYP2 = 223
+PHYP3 = 224
+PHYP4 = 225
+PECP1 = 226
+PECP2 = 227
+QDTP1 = 228
+QCRP1 = 229
+QCRP2 = 230
+QBRP1 = 231
+QDRP1 = 232
+TTX1 = 233
+TTX2 = 234
+TTX3 = 235
+TTX4 = 236
+TTY1 = 237
+TTY2 = 238
+TTY3 = 239
+TTY4 = 240
+N_COEF = 241
+# fmt: on

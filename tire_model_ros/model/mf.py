@@ -1,0 +1,228 @@
+"""``TireModel``: the Magic Formula 5.2/6.1/6.2 evaluator with the temperature extension.
+
+The equations live in numba kernels (:mod:`.forces`, :mod:`.moments`, :mod:`.vertical`,
+:mod:`.conditions`, assembled in :mod:`.kernel`); this module turns a .tir parameter set into
+the coefficient vector they read, broadcasts inputs and wraps the results.
+
+NaN or inf inputs never raise: a NaN input gives NaN in every output that depends on it (for
+example a NaN slip angle gives NaN Fy, Mz, Mx, and Fx through the combined-slip weighting),
+other outputs stay finite; infinite inputs are saturated like any other out-of-range input
+when the limits are on, and give inf/NaN where the plain equations do when they are off.
+Iterative quantities (Re, Rl) stop after a fixed number of steps, so no input can hang a call.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import coef as c
+from .kernel import N_FORCES, N_OUT, OUT_NAMES, evaluate_batch, evaluate_point
+
+if TYPE_CHECKING:
+    from .tir import TirData
+
+# Defaults for coefficients a property file may leave out (older formats, MF 5.2).
+_LIMIT_DEFAULTS = {
+    "PRESMIN": -math.inf, "PRESMAX": math.inf, "FZMIN": 0.0, "FZMAX": math.inf,
+    "KPUMIN": -math.inf, "KPUMAX": math.inf, "ALPMIN": -math.inf, "ALPMAX": math.inf,
+    "CAMMIN": -math.inf, "CAMMAX": math.inf,
+}  # fmt: skip
+_OTHER_DEFAULTS = {"NOMTEMP": 25.0, "VXLOW": 1.0, "Q_RE0": 1.0, "PKY4": 2.0, "QCZ1": 1.0}
+_SCALING = frozenset(c.NAMES[c.LFZO : c.LSGAL + 1])
+
+# Coefficients that divide or shape the equations: with_params rejects values <= 0
+_POSITIVE = (
+    "FNOMIN", "NOMPRES", "NOMTEMP", "UNLOADED_RADIUS", "LONGVL", "PCX1", "PCY1", "QCZ1",
+    "LFZO", "LMUY", "VERTICAL_STIFFNESS",
+)  # fmt: skip
+
+
+def _default(name: str) -> float:
+    if name in _SCALING:
+        return 1.0
+    if name in _LIMIT_DEFAULTS:
+        return _LIMIT_DEFAULTS[name]
+    return _OTHER_DEFAULTS.get(name, 0.0)
+
+
+def _check_value(name: str, value: Any) -> float:
+    """Return ``value`` as float or raise ValueError naming ``name`` and the reason."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"parameter {name}: {value!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"parameter {name}: value {v} is not finite")
+    if name in _POSITIVE and v <= 0.0:
+        raise ValueError(f"parameter {name}: must be > 0 (got {v}); it is a divisor or shape")
+    if name == "VXLOW" and v < 0.0:
+        raise ValueError(f"parameter {name}: must be >= 0 (got {v})")
+    return v
+
+
+def _pressure_nominal(params: Mapping[str, float]) -> float:
+    """INFLPRES if given, else NOMPRES (the 'None' pressure of evaluate)."""
+    infl = params.get("INFLPRES", 0.0)
+    return float(infl) if infl and math.isfinite(infl) and infl > 0 else float(params["NOMPRES"])
+
+
+@dataclass(frozen=True)
+class MFOutput:
+    """Outputs of :meth:`TireModel.evaluate`: float64 arrays of the broadcast input shape.
+
+    Units: N, N m, m, rad/s; Kxk [N per unit slip], Kya [N/rad]. ``t`` is the pneumatic trail,
+    ``Mzr`` the residual aligning torque, ``Re`` the effective rolling radius, ``Rl`` the loaded
+    radius, ``rho`` the deflection, ``Cx, Cy, Cz`` the carcass stiffnesses, ``two_a, two_b`` the
+    contact patch length and width. The fields after ``Mzr`` are None with ``full=False``.
+    """
+
+    Fx: np.ndarray
+    Fy: np.ndarray
+    Fz: np.ndarray
+    Mx: np.ndarray
+    My: np.ndarray
+    Mz: np.ndarray
+    Kxk: np.ndarray
+    Kya: np.ndarray
+    mux: np.ndarray
+    muy: np.ndarray
+    t: np.ndarray
+    Mzr: np.ndarray
+    Re: np.ndarray | None = None
+    omega: np.ndarray | None = None
+    rho: np.ndarray | None = None
+    Rl: np.ndarray | None = None
+    Cz: np.ndarray | None = None
+    Cx: np.ndarray | None = None
+    Cy: np.ndarray | None = None
+    sigmax: np.ndarray | None = None
+    sigmay: np.ndarray | None = None
+    two_a: np.ndarray | None = None
+    two_b: np.ndarray | None = None
+    kappa_used: np.ndarray | None = None
+    alpha_used: np.ndarray | None = None
+    gamma_used: np.ndarray | None = None
+    p_used: np.ndarray | None = None
+
+
+assert tuple(f.name for f in fields(MFOutput)) == OUT_NAMES
+
+
+class TireModel:
+    """An immutable Magic Formula tyre: a .tir parameter set ready to evaluate.
+
+    Parameters
+    ----------
+    tir : TirData
+        Parsed property file (``read_tir``); ``tir.params`` holds UPPERCASE coefficient names.
+    """
+
+    __slots__ = ("_P", "_p_nom", "_params", "_tir")
+
+    def __init__(self, tir: TirData):
+        self._tir = tir
+        params = dict(tir.params)
+        params["FITTYP"] = float(tir.fittyp)
+        for name in c.NAMES:  # TirData from read_tir has them all; a hand-built one may not
+            params.setdefault(name, _default(name))
+        P = np.array([float(params[name]) for name in c.NAMES], dtype=np.float64)
+        P.setflags(write=False)
+        self._P = P
+        self._params = MappingProxyType(params)
+        self._p_nom = _pressure_nominal(params)
+
+    @classmethod
+    def from_file(cls, path) -> TireModel:
+        """Read a .tir file (``read_tir``) and build the model."""
+        from .tir import read_tir
+
+        return cls(read_tir(path))
+
+    @property
+    def tir(self) -> TirData:
+        """The parameter set this model was built from (write it with ``write_tir``)."""
+        return self._tir
+
+    @property
+    def params(self) -> Mapping[str, float]:
+        """Read-only view of every coefficient, defaults filled."""
+        return self._params
+
+    @property
+    def coefficient_vector(self) -> np.ndarray:
+        """The read-only float64 vector the kernels read (order of ``coef.NAMES``)."""
+        return self._P
+
+    def with_params(self, updates: Mapping[str, float]) -> TireModel:
+        """A new model with some coefficients changed; this one is left as it was.
+
+        Raises
+        ------
+        ValueError
+            Unknown name, non-finite value, or a value that breaks the equations (e.g.
+            FNOMIN <= 0); the message names the parameter.
+        """
+        checked = {}
+        for name, value in updates.items():
+            key = str(name).upper()
+            if key == "FITTYP":
+                raise ValueError("parameter FITTYP: the model version cannot be changed")
+            if key not in self._params:
+                raise ValueError(f"parameter {name}: unknown coefficient name")
+            checked[key] = _check_value(key, value)
+        return TireModel(self._tir.with_params(checked))
+
+    def _inputs(self, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega):
+        Vx = self._params["LONGVL"] if Vx is None else Vx
+        p = self._p_nom if p is None else p
+        T = self._params["NOMTEMP"] if T is None else T
+        omega = math.nan if omega is None else omega
+        arrays = np.broadcast_arrays(
+            *(np.asarray(x, dtype=np.float64) for x in (Fz, kappa, alpha, gamma, Vx, p, T,
+                                                          phit, omega))
+        )  # fmt: skip
+        shape = arrays[0].shape
+        # one array type for the kernels (C-contiguous, writable): one compiled specialization
+        flat = [np.require(a.reshape(-1), requirements=("C", "W")) for a in arrays]
+        return shape, flat
+
+    def evaluate(self, Fz, kappa, alpha, gamma=0.0, Vx=None, p=None, T=None, *, phit=0.0,
+                 omega=None, limits: bool = True, full: bool = True) -> MFOutput:  # fmt: skip
+        """Evaluate the model; array inputs broadcast against each other.
+
+        Parameters
+        ----------
+        Fz : vertical load [N], positive in compression.
+        kappa : longitudinal slip ratio [-]. alpha : slip angle [rad]. gamma : inclination [rad].
+        Vx : forward speed [m/s] (None: LONGVL). p : inflation pressure, gauge [Pa]
+            (None: INFLPRES, else NOMPRES). T : tyre temperature [degC] (None: NOMTEMP).
+        phit : turn slip [1/m]; accepted for the interface, turn slip is not modelled.
+        omega : wheel spin [rad/s] (None: from kappa and Vx); only changes Re/Rl/omega.
+        limits : True = MFeval useMode 111 (saturation to the file ranges, low-speed model,
+            E <= 1); False = plain equations (useMode 211).
+        full : False skips the radii, stiffnesses and relaxation lengths (faster).
+        """
+        shape, (Fz, kappa, alpha, gamma, Vx, p, T, phit, omega) = self._inputs(
+            Fz, kappa, alpha, gamma, Vx, p, T, phit, omega
+        )
+        out = np.empty((N_OUT if full else N_FORCES, Fz.size))
+        evaluate_batch(self._P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, bool(limits),
+                       out)  # fmt: skip
+        values = {name: out[k].reshape(shape) for k, name in enumerate(OUT_NAMES[: out.shape[0]])}
+        return MFOutput(**values)
+
+    def evaluate_one(self, Fz: float, kappa: float, alpha: float, gamma: float, Vx: float,
+                     p: float, T: float, limits: bool = True):  # fmt: skip
+        """(Fx, Fy, Fz, Mx, My, Mz) of one sample; all inputs required, SI units, p gauge."""
+        return evaluate_point(self._P, float(Fz), float(kappa), float(alpha), float(gamma),
+                              float(Vx), float(p), float(T), bool(limits))  # fmt: skip
+
+    def __repr__(self) -> str:
+        path = getattr(self._tir, "path", None)
+        return f"TireModel(FITTYP={int(self._P[c.FITTYP])}, path={path!r})"
