@@ -1,0 +1,609 @@
+"""tire_model_node as its own process, driven over loopback ROS 2 from this test process.
+
+Two node processes are shared by the tests of this file: ``tire1`` (one wheel ``wheel``, the
+parameter and bad-input tests) and ``tire_model_node`` (config/car4.yaml, four wheels, the
+rear axle on its own file). Every published force is checked against ``TireModel.evaluate``
+on the same inputs.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+import shutil
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ros_util import NodeProcess, RosClient, node_command, ros_env, wait_for
+
+from tire_model_ros.model import TireModel
+from tire_model_ros.node import params as pn
+from tire_model_ros.node.wheel import Nominal, WheelState
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_TIR = ROOT / "config" / "default.tir"
+REF = ROOT.parent / "shared" / "reference" / "tir"
+FSAE_TIR = REF / "FSAE_Defaults.tir"
+BOOK_TIR = REF / "PacejkaBook_Defaults.tir"
+N1 = "/tire1"
+N4 = "/tire_model_node"
+CAR = ("/car/fl", "/car/fr", "/car/rl", "/car/rr")
+_stamps = itertools.count(1)
+
+
+# ------------------------------------------------------------------ ROS-free parts
+def test_wheel_key_mapping_and_classification():
+    assert pn.wheel_key("/car/rl") == "car.rl"
+    assert pn.wheel_key("wheel") == "wheel"
+    for bad in ("/car/1x", "", "/car//x-y", "/timeout"):
+        with pytest.raises(ValueError):
+            pn.wheel_key(bad)
+    with pytest.raises(ValueError, match="twice"):
+        pn.wheel_keys(["/car/fl", "car/fl"])
+    keys = ["car.rl", "car.fl"]
+    assert pn.classify("car.rl.tir_file", keys) == pn.ParamName("file", "car.rl", "tir_file")
+    assert pn.classify("car.rl.PDY1", keys) == pn.ParamName("coef", "car.rl", "PDY1")
+    assert pn.classify("PDY1", keys) == pn.ParamName("coef", "", "PDY1")
+    assert pn.classify("timeout.load", keys).kind == "node"
+    assert pn.coefficient_range("FNOMIN")[0] == 0.0 and pn.coefficient_range("FNOMIN")[2]
+    with pytest.raises(ValueError, match="PDY1"):
+        pn.coefficient_value("car.rl.PDY1", math.nan)
+
+
+def test_wheel_state_fallbacks_and_rejections():
+    model = TireModel.from_file(DEFAULT_TIR)
+    nom = Nominal.from_params(model.params)
+    assert (nom.Fz, nom.p, nom.T, nom.Vx) == (6752.0, 260000.0, 25.0, 16.6)
+    w = WheelState("wheel", "wheel")
+    to = dict.fromkeys(pn.INPUTS, 1.0)
+    out, events = w.compute(0.1, 0.0, 0.0, 0.0, model, nom, to, True)
+    assert out[2] == nom.Fz and events and events[0].startswith("fallback.load")
+    assert w.set_load(math.nan, 0.0) is not None and w.load.value is None
+    assert w.set_load(3000.0, 0.0) is None
+    assert w.set_pressure(-1.0, 0.0) is not None and w.set_temperature(-300.0, 0.0) is not None
+    out, _ = w.compute(0.1, 0.0, 0.0, 0.5, model, nom, to, True)
+    assert out[2] == 3000.0
+    out, events = w.compute(0.1, 0.0, 0.0, 2.0, model, nom, to, True)  # load now stale
+    assert out[2] == nom.Fz and w.load.fallback_stale == 1
+    assert w.compute(math.nan, 0.0, 0.0, 2.0, model, nom, to, True)[0] is None
+    skipped = w.compute(0.1, 0.0, 0.0, 2.0, model, nom, to, True, skip_without_load=True)
+    assert skipped[0] is None and w.skipped_no_load == 1
+    c = w.counters()
+    assert c["slip_in"] == 5 and c["forces_out"] == 3 and c["slip_rejected"] == 1
+    assert c["load.rejected"] == 1 and c["pressure.rejected"] == 1
+
+
+def test_cdr_fast_path_agrees_with_rclpy_serialisation():
+    from geometry_msgs.msg import TwistStamped, Vector3Stamped, WrenchStamped
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import FluidPressure
+
+    from tire_model_ros.node import cdr_fast
+
+    for n in range(10):  # every frame_id length modulo the 8-byte alignment
+        slip = Vector3Stamped()
+        slip.header.frame_id = "f" * n
+        slip.header.stamp.sec, slip.header.stamp.nanosec = 1234 + n, 999_999_999
+        slip.vector.x, slip.vector.y, slip.vector.z = 0.1 * n, -2.5, 1e-300
+        data = serialize_message(slip)
+        end, x, y, z = cdr_fast.read_vector(data)
+        assert (x, y, z) == (slip.vector.x, slip.vector.y, slip.vector.z)
+        vals = (1.0, -2.0, 3.5, math.pi, -1e9, 7e-7)
+        out = deserialize_message(cdr_fast.wrench_like(data, end, vals), WrenchStamped)
+        assert out.header == slip.header
+        w = out.wrench
+        assert (w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z) == vals
+        load = WrenchStamped()
+        load.header.frame_id = "g" * n
+        load.wrench.force.z = 4321.5 + n
+        assert cdr_fast.read_double(serialize_message(load), 2) == load.wrench.force.z
+        tw = TwistStamped()
+        tw.header.frame_id = "h" * n
+        tw.twist.linear.x = -3.25
+        assert cdr_fast.read_double(serialize_message(tw), 0) == -3.25
+        fp = FluidPressure(fluid_pressure=2.4e5)
+        assert cdr_fast.read_double(serialize_message(fp), 0) == 2.4e5
+    big_endian = b"\x00\x00" + data[2:]
+    assert cdr_fast.read_vector(big_endian) is None and cdr_fast.read_double(data[:20], 0) is None
+
+
+# ------------------------------------------------------------------ fixtures
+def warm_jit() -> None:
+    """Compile (or load from numba's cache) the single-sample kernel in this process first,
+    so node processes started next find it cached instead of compiling it themselves."""
+    TireModel.from_file(DEFAULT_TIR).evaluate_one(5000.0, 0.05, 0.05, 0.0, 16.6, 2.6e5, 25.0)
+
+
+@pytest.fixture(scope="module")
+def client():
+    warm_jit()
+    c = RosClient("test_node_client")
+    yield c
+    c.close()
+
+
+@pytest.fixture(scope="module")
+def tir_copy(tmp_path_factory):
+    path = tmp_path_factory.mktemp("tir") / "edited.tir"
+    shutil.copyfile(DEFAULT_TIR, path)
+    return path
+
+
+class Wheel:
+    """Test side of one wheel: input publishers and the collected forces by stamp."""
+
+    def __init__(self, client: RosClient, prefix: str) -> None:
+        from geometry_msgs.msg import TwistStamped, Vector3Stamped, WrenchStamped
+        from sensor_msgs.msg import FluidPressure, Temperature
+
+        self.client = client
+        self.prefix = prefix
+        self.out = client.collect(WrenchStamped, f"{prefix}/forces")
+        self.slip = client.publisher(Vector3Stamped, f"{prefix}/slip")
+        self.load = client.publisher(WrenchStamped, f"{prefix}/load")
+        self.pressure = client.publisher(FluidPressure, f"{prefix}/pressure")
+        self.temperature = client.publisher(Temperature, f"{prefix}/temperature")
+        self.velocity = client.publisher(TwistStamped, f"{prefix}/velocity")
+        self.types = (Vector3Stamped, WrenchStamped, FluidPressure, Temperature, TwistStamped)
+
+    def pubs(self):
+        return [self.slip, self.load, self.pressure, self.temperature, self.velocity]
+
+    def send_inputs(self, Fz=None, p=None, T=None, Vx=None) -> None:
+        _, Wrench, Fluid, Temp, Twist = self.types
+        if Fz is not None:
+            m = Wrench()
+            m.wrench.force.z = float(Fz)
+            self.load.publish(m)
+        if p is not None:
+            self.pressure.publish(Fluid(fluid_pressure=float(p)))
+        if T is not None:
+            self.temperature.publish(Temp(temperature=float(T)))
+        if Vx is not None:
+            m = Twist()
+            m.twist.linear.x = float(Vx)
+            self.velocity.publish(m)
+
+    def send_slips(self, slips) -> list[tuple[int, int]]:
+        """Publish slips (kappa, alpha, gamma) with fresh stamps; returns the stamps."""
+        Vector3Stamped = self.types[0]
+        stamps = []
+        for kappa, alpha, gamma in slips:
+            m = Vector3Stamped()
+            m.header.stamp.sec, m.header.stamp.nanosec = next(_stamps), 7
+            m.header.frame_id = "test"
+            m.vector.x, m.vector.y, m.vector.z = float(kappa), float(alpha), float(gamma)
+            self.slip.publish(m)
+            stamps.append((m.header.stamp.sec, m.header.stamp.nanosec))
+        return stamps
+
+    def results(self, stamps, timeout=15.0) -> np.ndarray:
+        """Forces (Fx, Fy, Fz, Mx, My, Mz) for the stamps, in order; fails if one is missing."""
+
+        def by_stamp():
+            return {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in list(self.out)}
+
+        wait_for(lambda: all(s in by_stamp() for s in stamps), timeout, f"{self.prefix}/forces")
+        got = by_stamp()
+        rows = []
+        for s in stamps:
+            w = got[s].wrench
+            assert got[s].header.frame_id == "test"
+            rows.append([w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z])
+        return np.array(rows)
+
+    def settle(self, model, inputs, timeout=15.0, limits=True, send=True) -> None:
+        """Send ``inputs`` and wait until the node computes with them (probe slips)."""
+        if send:
+            self.send_inputs(**inputs)
+        probe = [(0.03, 0.04, 0.01)]
+
+        def applied():
+            stamps = self.send_slips(probe)
+            got = self.results(stamps)
+            want = expected(model, inputs, probe, limits)
+            return np.allclose(got, want, rtol=1e-9, atol=1e-6)
+
+        wait_for(applied, timeout, f"{self.prefix} computing with {inputs}", interval=0.05)
+
+
+def expected(model: TireModel, inputs: dict, slips, limits=True) -> np.ndarray:
+    s = np.asarray(slips, dtype=float)
+    o = model.evaluate(inputs["Fz"], s[:, 0], s[:, 1], s[:, 2], Vx=inputs["Vx"], p=inputs["p"],
+                       T=inputs["T"], limits=limits)  # fmt: skip
+    Fz = np.broadcast_to(np.asarray(inputs["Fz"], dtype=float), s[:, 0].shape)
+    return np.column_stack([o.Fx, o.Fy, Fz, o.Mx, o.My, o.Mz])
+
+
+def check(wheel: Wheel, model: TireModel, inputs: dict, slips, limits=True) -> np.ndarray:
+    got = wheel.results(wheel.send_slips(slips))
+    np.testing.assert_allclose(got, expected(model, inputs, slips, limits), rtol=1e-9, atol=1e-6)
+    return got
+
+
+def random_slips(seed: int, n: int = 40) -> list[tuple[float, float, float]]:
+    rng = np.random.default_rng(seed)
+    k = rng.uniform(-0.4, 0.4, n)
+    a = rng.uniform(-0.25, 0.25, n)
+    g = rng.uniform(-0.08, 0.08, n)
+    return list(zip(k, a, g, strict=True))
+
+
+def start_node(args, client) -> NodeProcess:
+    return NodeProcess([*node_command(), "--ros-args", *args], ros_env(client.domain_id))
+
+
+@pytest.fixture(scope="module")
+def node1(client, tir_copy):
+    proc = start_node(
+        ["-r", "__node:=tire1", "-p", f"tir_file:={DEFAULT_TIR}", "-p", "diagnostics_period:=0.3"]
+        + [a for k in pn.INPUTS for a in ("-p", f"timeout.{k}:=0.0")],
+        client,
+    )
+    wheel = Wheel(client, "/wheel")
+    client.wait_matched(wheel.pubs(), 90, proc)
+    yield proc, wheel
+    proc.stop()
+
+
+@pytest.fixture(scope="module")
+def node4(client):
+    proc = start_node(
+        ["--params-file", str(ROOT / "config" / "car4.yaml"),
+         "-p", f"tir_file:={DEFAULT_TIR}", "-p", f"car.rl.tir_file:={BOOK_TIR}",
+         "-p", f"car.rr.tir_file:={BOOK_TIR}",
+         "-p", "timeout.load:=0.0", "-p", "timeout.velocity:=0.0"],
+        client,
+    )  # fmt: skip
+    wheels = {p: Wheel(client, p) for p in CAR}
+    client.wait_matched([pub for w in wheels.values() for pub in w.pubs()], 90, proc)
+    yield proc, wheels
+    proc.stop()
+
+
+def current_model(client, node: str, file: Path, names=("PDY1",)) -> TireModel:
+    """The model the node should run: the file plus its coefficient parameters now."""
+    values = client.get_parameters(node, list(names))
+    return TireModel.from_file(file).with_params(values)
+
+
+# ------------------------------------------------------------------ outputs = model
+def test_one_wheel_outputs_match_model(node1):
+    _, wheel = node1
+    model = TireModel.from_file(DEFAULT_TIR)
+    for i, inputs in enumerate(
+        [
+            {"Fz": 4000.0, "p": 2.2e5, "T": 45.0, "Vx": 20.0},
+            {"Fz": 7500.0, "p": 2.7e5, "T": 5.0, "Vx": 3.0},
+        ]
+    ):
+        wheel.settle(model, inputs)
+        got = check(wheel, model, inputs, random_slips(i))
+        assert np.all(got[:, 2] == inputs["Fz"])
+
+
+def test_four_wheels_each_own_inputs_and_models(node4):
+    _, wheels = node4
+    front = TireModel.from_file(DEFAULT_TIR)
+    rear = TireModel.from_file(BOOK_TIR).with_params({"LMUY": 0.95, "LMUX": 0.97})  # car4.yaml
+    models = {"/car/fl": front, "/car/fr": front, "/car/rl": rear, "/car/rr": rear}
+    inputs = {
+        p: {"Fz": 3000.0 + 900 * i, "p": 2.0e5 + 2e4 * i, "T": 20.0 + 10 * i, "Vx": 10.0 + i}
+        for i, p in enumerate(CAR)
+    }
+    for p, w in wheels.items():
+        w.settle(models[p], inputs[p])
+    slips = {p: random_slips(10 + i) for i, p in enumerate(CAR)}
+    stamps = {p: [] for p in CAR}
+    for k in range(len(slips["/car/fl"])):  # interleaved, as a car would publish
+        for p, w in wheels.items():
+            stamps[p] += w.send_slips([slips[p][k]])
+    for p, w in wheels.items():
+        got = w.results(stamps[p])
+        np.testing.assert_allclose(got, expected(models[p], inputs[p], slips[p]), rtol=1e-9,
+                                   atol=1e-6, err_msg=p)  # fmt: skip
+    # The rear really runs another model than the front on the same inputs.
+    same = expected(front, inputs["/car/rl"], slips["/car/rl"])
+    assert not np.allclose(same, expected(rear, inputs["/car/rl"], slips["/car/rl"]), rtol=1e-3)
+
+
+def test_wheel_gets_own_file_live_and_back(client, node4):
+    _, wheels = node4
+    fr = wheels["/car/fr"]
+    front = TireModel.from_file(DEFAULT_TIR)
+    inputs = {"Fz": 950.0, "p": 9.0e4, "T": 30.0, "Vx": 11.0}
+    fr.settle(front, inputs)
+    # The wheel's coefficient parameters exist once its file is set: two requests.
+    res = client.set_parameters(N4, {"car.fr.tir_file": str(FSAE_TIR)}, atomically=True)
+    assert res.successful, res.reason
+    assert client.set_parameters(N4, {"car.fr.LMUX": 0.9})[0].successful
+    own = TireModel.from_file(FSAE_TIR).with_params({"LMUX": 0.9})
+    slips = random_slips(21, 10)
+    check(fr, own, inputs, slips)  # the very next messages use the wheel's own model
+    got = client.get_parameters(N4, ["car.fr.LMUX", "car.fr.FNOMIN", "FNOMIN"])
+    assert got == {"car.fr.LMUX": 0.9, "car.fr.FNOMIN": 1000.0, "FNOMIN": 6752.0}
+    fl_inputs = {"Fz": 3000.0, "p": 2.0e5, "T": 20.0, "Vx": 10.0}
+    wheels["/car/fl"].settle(front, fl_inputs)
+    check(wheels["/car/fl"], front, fl_inputs, slips)  # the other front wheel: shared model
+
+    res = client.set_parameters(N4, {"car.fr.tir_file": ""})
+    assert res[0].successful, res[0].reason
+    check(fr, front, inputs, slips)
+    res = client.set_parameters(N4, {"car.fr.PDY1": 1.0})  # no own model: not a parameter now
+    assert not res[0].successful
+
+
+def test_pressure_is_absolute(client, node1):
+    _, wheel = node1
+    model = TireModel.from_file(DEFAULT_TIR)
+    wheel.settle(model, INPUTS1)
+    assert client.set_parameters(N1, {"pressure_is_absolute": True})[0].successful
+    try:
+        gauge = 2.1e5
+        wheel.send_inputs(p=gauge + 101325.0)  # FluidPressure documents absolute pressure
+        wheel.settle(model, dict(INPUTS1, p=gauge), send=False)
+    finally:
+        assert client.set_parameters(N1, {"pressure_is_absolute": False})[0].successful
+
+
+# ------------------------------------------------------------------ live parameter changes
+INPUTS1 = {"Fz": 5000.0, "p": 2.4e5, "T": 30.0, "Vx": 15.0}
+
+
+def test_set_parameters_and_atomically_take_effect_next_message(client, node1):
+    _, wheel = node1
+    base = TireModel.from_file(DEFAULT_TIR)
+    wheel.settle(base, INPUTS1)
+    slips = random_slips(3, 20)
+    before = check(wheel, base, INPUTS1, slips)
+
+    res = client.set_parameters(N1, {"PDY1": 1.25, "PKY1": -20.0})
+    assert all(r.successful for r in res), res
+    m1 = base.with_params({"PDY1": 1.25, "PKY1": -20.0})
+    after = check(wheel, m1, INPUTS1, slips)  # no probing: the very next messages
+    assert not np.allclose(before[:, 1], after[:, 1], rtol=1e-3)
+
+    res = client.set_parameters(N1, {"PDX1": 1.4, "LMUY": 0.8, "PKX1": 30.0}, atomically=True)
+    assert res.successful, res.reason
+    m2 = m1.with_params({"PDX1": 1.4, "LMUY": 0.8, "PKX1": 30.0})
+    check(wheel, m2, INPUTS1, slips)
+    assert client.get_parameters(N1, ["PDX1", "LMUY"]) == {"PDX1": 1.4, "LMUY": 0.8}
+
+
+def test_changes_under_streaming_drop_nothing_mix_nothing(client, node1):
+    """Slips stream while coefficients and the file flip: every slip gets one output, each
+    equal to one whole model (never a mix), and the models follow the changes in order."""
+    import threading
+
+    _, wheel = node1
+    assert client.set_parameters(N1, {"tir_file": str(DEFAULT_TIR)})[0].successful
+    models = [
+        TireModel.from_file(DEFAULT_TIR),
+        TireModel.from_file(DEFAULT_TIR).with_params({"PDY1": 1.3, "PDX1": 1.4}),
+    ]
+    wheel.settle(models[0], INPUTS1)
+    slips = random_slips(30, 600)
+    stamps: list = []
+    sender = threading.Thread(
+        target=lambda: [stamps.extend(wheel.send_slips([s])) or time.sleep(0.002) for s in slips]
+    )
+    sender.start()
+    for k in range(6):
+        time.sleep(0.12)
+        if k % 3 == 2:  # a whole-file reload now and then
+            res = client.set_parameters(N1, {"tir_file": str(DEFAULT_TIR)})
+        else:
+            res = client.set_parameters(N1, {"PDY1": 1.3, "PDX1": 1.4}, atomically=True)
+        assert (res if k % 3 != 2 else res[0]).successful
+    sender.join(30)
+    got = wheel.results(stamps, timeout=30)  # every slip answered
+    want = [expected(m, INPUTS1, slips) for m in models]
+    which = []
+    for i in range(len(slips)):
+        hits = [j for j in (0, 1) if np.allclose(got[i], want[j][i], rtol=1e-9, atol=1e-6)]
+        assert hits, f"output {i} matches neither model: {got[i]}"
+        which.append(hits[0])
+    assert 1 in which  # the coefficient change took effect while streaming
+    check(wheel, models[0], INPUTS1, slips[:5])  # the last change, a reload, holds now
+
+
+def test_coefficient_descriptors(client, node1):
+    from rcl_interfaces.srv import DescribeParameters
+
+    req = DescribeParameters.Request(names=["FNOMIN", "PDY1", "timeout.load"])
+    d = client.call(DescribeParameters, f"{N1}/describe_parameters", req).descriptors
+    assert "load" in d[0].description.lower() and d[0].floating_point_range[0].from_value == 0.0
+    assert d[1].description and not d[1].floating_point_range  # no physical bound on PDY1
+    assert d[2].floating_point_range[0].from_value == 0.0
+
+
+def test_bad_values_rejected_outputs_unchanged(client, node1):
+    _, wheel = node1
+    names = ("PDY1", "PKY1", "PDX1", "LMUY", "PKX1", "FNOMIN")
+    model = current_model(client, N1, DEFAULT_TIR, names)
+    slips = random_slips(4, 10)
+    check(wheel, model, INPUTS1, slips)
+    for values, atomic, word in [
+        ({"PDY1": math.nan}, False, "PDY1"),
+        ({"FNOMIN": 0.0}, False, "FNOMIN"),
+        ({"FNOMIN": -5.0}, False, "FNOMIN"),  # outside the descriptor's range
+        ({"PDY1": "high"}, False, ""),  # wrong type
+        ({"PDX1": 2.0, "PDY1": math.inf}, True, "PDY1"),  # one bad value rejects the batch
+        ({"NOPE1": 1.0}, False, ""),  # not a parameter of the node
+        ({"wheel.PDY1": 1.0}, False, ""),  # the wheel has no own model
+        ({"limits": 3}, False, ""),
+    ]:
+        res = client.set_parameters(N1, values, atomically=atomic)
+        results = [res] if atomic else res
+        assert not any(r.successful for r in results), values
+        assert word in " ".join(r.reason for r in results), (values, results)
+    assert client.get_parameters(N1, ["PDY1", "PDX1"]) == {
+        "PDY1": model.params["PDY1"],
+        "PDX1": model.params["PDX1"],
+    }
+    check(wheel, model, INPUTS1, slips)
+
+
+def test_switch_tir_file_and_bad_file(client, node1, tmp_path):
+    _, wheel = node1
+    res = client.set_parameters(N1, {"tir_file": str(FSAE_TIR)})
+    assert res[0].successful, res[0].reason
+    fsae = TireModel.from_file(FSAE_TIR)
+    inputs = {"Fz": 900.0, "p": 8.0e4, "T": 25.0, "Vx": 12.0}
+    wheel.settle(fsae, inputs)
+    slips = random_slips(5, 20)
+    check(wheel, fsae, inputs, slips)
+    # Coefficient parameters now carry the new file's values.
+    got = client.get_parameters(N1, ["FNOMIN", "PDY1", "NOMPRES"])
+    assert got == {k: fsae.params[k] for k in got}
+
+    bad = tmp_path / "broken.tir"
+    text = FSAE_TIR.read_text().replace("FNOMIN", "FNOMIN = = oops\nX", 1)
+    bad.write_text(text)
+    for path, word in [(bad, "broken.tir"), (tmp_path / "missing.tir", "missing.tir")]:
+        res = client.set_parameters(N1, {"tir_file": str(path)})
+        assert not res[0].successful and word in res[0].reason, res[0].reason
+    assert client.get_parameters(N1, ["tir_file"])["tir_file"] == str(FSAE_TIR)
+    check(wheel, fsae, inputs, slips)
+
+
+def _edit(path: Path, key: str, value: float) -> None:
+    text = path.read_text()
+    new, n = re.subn(rf"^({key}\s*=\s*)\S+", rf"\g<1>{value!r}", text, count=1, flags=re.M)
+    assert n == 1
+    path.write_text(new)
+
+
+def test_edit_file_and_reload(client, node1, tir_copy):
+    from std_srvs.srv import Trigger
+
+    _, wheel = node1
+    res = client.set_parameters(N1, {"tir_file": str(tir_copy)})
+    assert res[0].successful, res[0].reason
+    m0 = TireModel.from_file(tir_copy)
+    wheel.settle(m0, INPUTS1)
+    slips = random_slips(6, 20)
+    before = check(wheel, m0, INPUTS1, slips)
+
+    _edit(tir_copy, "PDY1", 0.7)
+    _edit(tir_copy, "PCX1", 1.5)
+    r = client.call(Trigger, f"{N1}/reload", Trigger.Request())
+    assert r.success and str(tir_copy) in r.message, r.message
+    m1 = TireModel.from_file(tir_copy)
+    assert m1.params["PDY1"] == 0.7
+    after = check(wheel, m1, INPUTS1, slips)
+    assert not np.allclose(before, after, rtol=1e-3)
+    assert client.get_parameters(N1, ["PDY1", "PCX1"]) == {"PDY1": 0.7, "PCX1": 1.5}
+
+    tir_copy.write_text(tir_copy.read_text().replace("[LATERAL_COEFFICIENTS]", "[LATERAL\n"))
+    r = client.call(Trigger, f"{N1}/reload", Trigger.Request())
+    assert not r.success and "edited.tir" in r.message, r.message
+    check(wheel, m1, INPUTS1, slips)
+
+
+# ------------------------------------------------------------------ bad inputs
+def _diag_values(client_box, name: str, since: float) -> dict[str, str]:
+    for arr in reversed(list(client_box)):
+        t = arr.header.stamp.sec + 1e-9 * arr.header.stamp.nanosec
+        for st in arr.status:
+            if st.name == name and t >= since:
+                return {kv.key: kv.value for kv in st.values} | {"_level": st.level}
+    return {}
+
+
+def test_bad_inputs_survive_no_nan_diagnostics(client, node1):
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    proc, wheel = node1
+    diags = client.collect(DiagnosticArray, "/diagnostics")
+    client.set_parameters(N1, {"tir_file": str(DEFAULT_TIR)})
+    model = TireModel.from_file(DEFAULT_TIR)
+    wheel.settle(model, INPUTS1)
+    wait_for(lambda: _diag_values(diags, "tire1: wheel", 0.0), 10, "diagnostics of tire1")
+    before = {k: int(v) for k, v in _diag_values(diags, "tire1: wheel", 0.0).items()
+              if v.isdigit()}  # fmt: skip
+
+    nan_stamps = wheel.send_slips([(math.nan, 0.0, 0.0), (0.0, math.inf, 0.0), (0, 0, -math.inf)])
+    wheel.send_inputs(Fz=math.nan, p=math.nan, T=-400.0, Vx=math.inf)  # all rejected: held
+    huge = [(1e6, 3.0, 2.0), (-50.0, -1.4, 0.0)]
+    check(wheel, model, INPUTS1, huge)  # limits saturate; held inputs are INPUTS1
+    wheel.send_inputs(Fz=-100.0)  # off the ground: all-zero wrench
+    wait_for(lambda: not wheel.results(wheel.send_slips([(0.1, 0.1, 0.0)])).any(), 10, "Fz<0")
+    zero = wheel.results(wheel.send_slips([(0.1, 0.1, 0.0)] * 3))
+    wheel.send_inputs(Fz=INPUTS1["Fz"])
+    wheel.settle(model, INPUTS1)
+    time.sleep(0.2)
+    assert proc.alive()
+    assert np.all(zero == 0.0)
+    stamps = {(m.header.stamp.sec, m.header.stamp.nanosec) for m in list(wheel.out)}
+    assert not stamps & set(nan_stamps)  # the NaN slips were not published
+    for m in list(wheel.out):
+        w = m.wrench
+        vals = [w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z]
+        assert all(math.isfinite(v) for v in vals)
+
+    t_after = time.time()
+
+    def counted():
+        d = _diag_values(diags, "tire1: wheel", t_after)
+        return d if d and int(d["no_contact"]) - before.get("no_contact", 0) >= 1 else None
+
+    d = wait_for(counted, 10, "diagnostics with the counts")
+    inc = {k: int(d[k]) - before.get(k, 0) for k in before}
+    assert inc["slip_rejected"] == 3
+    assert inc["load.rejected"] == 1 and inc["pressure.rejected"] == 1
+    assert inc["temperature.rejected"] == 1 and inc["velocity.rejected"] == 1
+    assert inc["no_contact"] >= 4
+    assert d["tir_file"] == str(DEFAULT_TIR)
+    assert int(d["forces_out"]) + int(d["slip_rejected"]) <= int(d["slip_in"])
+
+
+def test_stale_input_falls_back_to_nominal(client, node1):
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    _, wheel = node1
+    diags = client.collect(DiagnosticArray, "/diagnostics")
+    model = TireModel.from_file(DEFAULT_TIR)
+    assert client.set_parameters(N1, {"timeout.velocity": 0.2})[0].successful
+    wheel.send_inputs(Vx=4.0)
+    time.sleep(0.5)
+    nominal = dict(INPUTS1, Vx=model.params["LONGVL"])
+    check(wheel, model, nominal, random_slips(8, 5))
+    t0 = time.time()
+    d = wait_for(lambda: _diag_values(diags, "tire1: wheel", t0), 10, "diagnostics")
+    assert int(d["fallback.velocity.stale"]) >= 5
+    assert client.set_parameters(N1, {"timeout.velocity": 0.0})[0].successful
+
+
+def test_limits_off_evaluates_plainly(client, node1):
+    _, wheel = node1
+    model = TireModel.from_file(DEFAULT_TIR)
+    assert client.set_parameters(N1, {"limits": False})[0].successful
+    wheel.settle(model, dict(INPUTS1, Fz=5100.0), limits=False)
+    slips = [(0.6, 0.3, 0.2), (-0.9, -0.5, 0.0)]
+    check(wheel, model, dict(INPUTS1, Fz=5100.0), slips, limits=False)
+    assert client.set_parameters(N1, {"limits": True})[0].successful
+
+
+# ------------------------------------------------------------------ process life
+def test_bad_start_exits_1_with_message(client, tmp_path):
+    missing = tmp_path / "nope.tir"
+    proc = start_node(["-r", "__node:=tire_bad", "-p", f"tir_file:={missing}"], client)
+    wait_for(lambda: not proc.alive(), 30, "the node to exit")
+    rc, log = proc.stop()
+    assert rc == 1 and "nope.tir" in log and "Traceback" not in log, log
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_signal_clean_exit(request, sig):
+    proc, _ = request.getfixturevalue("node4" if sig == signal.SIGTERM else "node1")
+    assert proc.alive()
+    rc, log = proc.stop(sig, timeout=15)
+    assert rc == 0, log
+    assert "Traceback" not in log, log
