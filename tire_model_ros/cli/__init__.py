@@ -1,4 +1,6 @@
-"""``tire-model``: the offline tool. Each subcommand lives in its own module.
+"""tire-model: evaluate, simulate, replay, refit and diagnose Magic Formula tyre models.
+
+Each subcommand lives in its own module.
 
 A subcommand module defines ``HELP`` (one line), ``add_arguments(parser)`` and
 ``run(args) -> int``. Modules are imported only when their command runs, so
@@ -18,7 +20,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "play": ("tire_model_ros.cli.play_cmd", "publish a recording's input topics with their timing"),
     "record": ("tire_model_ros.cli.record_cmd", "record the node's force topics to a new bag"),
     "fit": ("tire_model_ros.cli.fit_cmd", "refit the model from recordings"),
-    "diagnose": ("tire_model_ros.cli.diagnose_cmd", "locate, name and model a model/recording mismatch"),
+    "diagnose": ("tire_model_ros.cli.diagnose_cmd", "explain a model/recording mismatch"),
 }
 
 
