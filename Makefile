@@ -28,6 +28,7 @@ bench: venv
 	$(PY) bench/bench_model.py
 	$(PY) bench/bench_node.py
 	$(PY) bench/bench_recording.py
+	$(PY) bench/bench_fit.py
 
 proof: venv
 	$(PY) bench/proof.py

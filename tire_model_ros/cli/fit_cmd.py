@@ -1,0 +1,134 @@
+"""``tire-model fit``: refit Magic Formula coefficients from one or more recordings.
+
+Reads every wheel of every BAG, fits the coefficients of START stage by stage (Fx0, Fy0, Mz0,
+combined slip, pressure terms, temperature terms; see ``tire_model_ros.fit.stages``), writes the
+fitted model to OUT.tir (with its temperature section) and a report (markdown, JSON, PNG plots)
+into the report folder. Existing files are never replaced without ``--force``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = "refit the model from recordings"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "bags", nargs="+", metavar="BAG", help="recording(s): rosbag2 folder or .mcap"
+    )
+    parser.add_argument("--tir", required=True, metavar="START", help="start model (.tir)")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT.tir", help="fitted model")
+    parser.add_argument(
+        "--report", metavar="DIR", help="report folder (default: OUT_fit_report next to OUT.tir)"
+    )
+    parser.add_argument("--force", action="store_true", help="overwrite OUT.tir and the report")
+    parser.add_argument(
+        "--holdout-every",
+        type=int,
+        default=4,
+        metavar="K",
+        help="hold out every K-th sweep per condition for validation (default 4; 0 = none)",
+    )
+    parser.add_argument(
+        "--warmup",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="drop the first SECONDS of every wheel (cold tyre)",
+    )
+    parser.add_argument(
+        "--min-temperature",
+        type=float,
+        metavar="DEGC",
+        help="drop samples whose recorded temperature is below DEGC",
+    )
+    parser.add_argument(
+        "--stages",
+        metavar="LIST",
+        help="comma-separated stages to run (Fx0,Fy0,Mz0,combined,pressure,"
+        "temperature; default all)",
+    )
+    parser.add_argument(
+        "--wheel",
+        action="append",
+        metavar="PREFIX",
+        help="fit only this wheel prefix (repeatable; default all wheels)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+
+
+def default_report_dir(output: Path) -> Path:
+    """``OUT_fit_report`` beside OUT.tir."""
+    return output.with_name(f"{output.stem}_fit_report")
+
+
+def run(args: argparse.Namespace) -> int:
+    from tire_model_ros.fit.report import report_paths
+
+    out = Path(args.output)
+    report_dir = Path(args.report) if args.report else default_report_dir(out)
+    # Refuse before any work: never replace a file that was not meant to be replaced.
+    if out.exists() and not args.force:
+        raise FileExistsError(f"{out}: exists; not overwriting it (use --force)")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"{out.parent}: output folder does not exist")
+    if not args.force:
+        for p in report_paths(report_dir):
+            if p.exists():
+                raise FileExistsError(f"{p}: exists; not overwriting the report (use --force)")
+    for bag in args.bags:  # cheap checks first: the model and bag readers load numba kernels
+        if not Path(bag).exists():
+            raise FileNotFoundError(f"{bag}: no such recording")
+    if not Path(args.tir).is_file():
+        raise FileNotFoundError(f"{args.tir}: no such .tir file")
+
+    from tire_model_ros.fit import FitOptions, fit_recording, write_fit_report
+    from tire_model_ros.model import TireModel, write_tir
+    from tire_model_ros.recording.bag import read_recording
+
+    start = TireModel.from_file(args.tir)
+    wheels = []
+    for bag in args.bags:
+        for prefix, series in read_recording(bag).items():
+            if args.wheel and prefix not in args.wheel:
+                continue
+            series.meta = {**(series.meta or {}), "bag": str(bag)}
+            wheels.append(series)
+    if not wheels:
+        wanted = f" matching {', '.join(args.wheel)}" if args.wheel else ""
+        raise ValueError(f"no wheel{wanted} in {', '.join(args.bags)}")
+    options = FitOptions(
+        holdout_every=args.holdout_every,
+        warmup_s=args.warmup,
+        min_temperature=args.min_temperature,
+        stages=[s.strip() for s in args.stages.split(",") if s.strip()] if args.stages else None,
+        progress=False if args.quiet else None,
+    )
+    if options.progress is None:
+        options.progress = True  # one line per stage; the live counter only on a TTY
+    result = fit_recording(wheels, start, options)
+    report_path = write_fit_report(result, report_dir, overwrite=args.force)
+    fitted = [st["stage"] for st in result.report["stages"] if st["status"] == "fitted"]
+    if not fitted:
+        reasons = "; ".join(
+            f"{st['stage']}: {st.get('reason', st['status'])}" for st in result.report["stages"]
+        )
+        raise ValueError(
+            f"no stage could be fitted, {out} not written ({reasons}); report in {report_path}"
+        )
+    write_tir(result.model.tir, out, overwrite=args.force)
+    held = result.report["metrics"]["overall"]["heldout"]
+    summary = ", ".join(
+        f"{c} {held['before'][c]['rmse']:.4g} -> {held['after'][c]['rmse']:.4g}"
+        for c in result.report["metrics"]["channels"]
+        if held["after"][c]["n"] and held["before"][c]["rmse"] != held["after"][c]["rmse"]
+    )
+    print(f"wrote {out} (stages: {', '.join(fitted)})")
+    print(f"report {report_path}")
+    if summary:
+        print(f"held-out rmse: {summary}")
+    sys.stdout.flush()
+    return 0
