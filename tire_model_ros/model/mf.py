@@ -188,8 +188,9 @@ class TireModel:
                                                           phit, omega))
         )  # fmt: skip
         shape = arrays[0].shape
-        # one array type for the kernels (C-contiguous, writable): one compiled specialization
-        flat = [np.require(a.reshape(-1), requirements=("C", "W")) for a in arrays]
+        # one array type for the kernels (C-contiguous, writable): one compiled specialization.
+        # A copy: broadcast views are read-only, and the copy costs little next to the kernel.
+        flat = [np.array(a, dtype=np.float64, order="C").reshape(-1) for a in arrays]
         return shape, flat
 
     def evaluate(self, Fz, kappa, alpha, gamma=0.0, Vx=None, p=None, T=None, *, phit=0.0,
