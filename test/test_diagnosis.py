@@ -1,0 +1,171 @@
+"""Mismatch diagnosis on virtual-rig recordings: names the physics the model leaves out.
+
+Real parts only: the rig (its own two-node thermal physics, relaxation, noise), real .tir files,
+a real bag written and read back, and the CLI in a subprocess.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tire_model_ros.diagnosis import Diagnosis, diagnose
+from tire_model_ros.diagnosis.thermal import relaxed_slip, thermal_state_K
+from tire_model_ros.model import TireModel
+from tire_model_ros.rig import simulate_session
+
+ROOT = Path(__file__).resolve().parents[1]
+TIR = ROOT.parent / "shared" / "reference" / "tir" / "MagicFormula61_Parameters.tir"
+TOOL = str(Path(sys.executable).parent / "tire-model")
+WORDS = {
+    "temperature",
+    "pressure",
+    "relaxation",
+    "camber",
+    "combined_slip",
+    "speed",
+    "offset",
+    "time_delay",
+    "drift",
+    "none",
+}
+
+
+@pytest.fixture(scope="module")
+def model() -> TireModel:
+    return TireModel.from_file(TIR)
+
+
+def _session(model, effects, omit=(), seed=3):
+    wheels, truth = simulate_session(
+        model, "lateral_sweeps", effects=effects, omit=list(omit), seed=seed
+    )
+    return wheels, truth
+
+
+def _check_json(doc: dict) -> None:
+    """The INTERFACE.md diagnosis object, field by field."""
+    assert set(doc) >= {"effects", "fit"}
+    assert doc["effects"], "effects is never empty ('none' when nothing is found)"
+    for e in doc["effects"]:
+        assert e["name"] in WORDS
+        assert isinstance(e["concealed"], bool)
+        assert e["channel"] in ("Fx", "Fy", "Mz")
+        assert isinstance(e["where"], str) and e["where"]
+        assert isinstance(e["evidence"], str) and e["evidence"]
+        assert all(isinstance(k, str) and isinstance(v, float) for k, v in e["parameters"].items())
+    names = [e["name"] for e in doc["effects"]]
+    assert ("none" not in names) or names == ["none"]
+    fit = doc["fit"]
+    assert set(fit) == {"baseline", "improved", "heldout_baseline", "heldout_improved"}
+    for block in ("baseline", "improved"):
+        for ch in ("Fx", "Fy"):
+            assert fit[block][ch]["rmse"] >= 0.0 and 0.0 <= fit[block][ch]["nrmse"] < 1.0
+    for block in ("heldout_baseline", "heldout_improved"):
+        for ch in ("Fx", "Fy"):
+            assert fit[block][ch]["rmse"] >= 0.0
+    json.dumps(doc, allow_nan=False)  # strict JSON: no NaN/inf
+
+
+def test_hidden_states_are_first_order_and_recover():
+    """The diagnosis' own states: a thermal node cools back, a lag vanishes at sigma -> 0."""
+    t = np.arange(0.0, 100.0, 0.01)
+    P = np.where(t < 20.0, 1000.0, 0.0)
+    T = thermal_state_K(P, t, 5.0, 0.01)
+    assert T[1999] == pytest.approx(10.0 * (1 - np.exp(-20.0 / 5.0)), rel=1e-3)
+    assert T[-1] < 1e-3 * T[1999]  # recovers after the pause (wear would not)
+    a = np.sin(t)
+    lag = relaxed_slip(a, t, np.full_like(t, 10.0), 0.5)
+    # First order in distance: phase lag atan(omega sigma / V) at omega = 1 rad/s.
+    assert np.argmax(lag[:700]) - np.argmax(a[:700]) == pytest.approx(5, abs=1)
+    assert np.allclose(relaxed_slip(a, t, np.full_like(t, 10.0), 0.0), a)
+
+
+def test_concealed_temperature_is_named_first_and_halves_heldout_error(model):
+    wheels, _truth = _session(model, {"heating": True}, omit=["temperature"])
+    assert all(w.T is None for w in wheels)
+    diag = diagnose(wheels, model, seed=0)
+    assert isinstance(diag, Diagnosis)
+    first = diag.effects[0]
+    assert first.name == "temperature", diag.details["log"]
+    assert first.concealed is True
+    assert first.parameters["tau_T_s"] > 0 and np.isfinite(first.uncertainty["tau_T_s"])
+    fit = diag.fit
+    assert fit["heldout_improved"]["Fy"]["rmse"] <= 0.5 * fit["heldout_baseline"]["Fy"]["rmse"]
+    # The inferred temperature rises with the energy put in and is reported per wheel.
+    prefix = wheels[0].prefix
+    T = diag.inferred[prefix]["T"]
+    assert T.shape == wheels[0].t.shape and np.ptp(T) > 1.0
+    assert diag.heldout_mask[prefix].any() and diag.train_mask[prefix].any()
+    assert not (diag.heldout_mask[prefix] & diag.train_mask[prefix]).any()
+    assert set(diag.predictions[prefix]) >= {"baseline_Fy", "improved_Fy"}
+    _check_json(diag.to_json())
+    # The improved model carries the fitted temperature coefficients.
+    assert diag.improved_model.params["TTY3"] != model.params["TTY3"]
+
+
+def test_relaxation_is_named(model):
+    wheels, _ = _session(model, {"relaxation": True})
+    diag = diagnose(wheels, model, seed=0)
+    names = [e.name for e in diag.effects]
+    assert names[0] == "relaxation", diag.details["log"]
+    assert 0.1 < diag.effects[0].parameters["sigma_alpha_m"] < 2.0
+    assert "none" not in names
+    fit = diag.fit
+    assert fit["heldout_improved"]["Fy"]["rmse"] < fit["heldout_baseline"]["Fy"]["rmse"]
+
+
+def test_delay_is_told_from_relaxation(model):
+    """The confuser of relaxation: the same lag at every speed and load is a time delay."""
+    wheels, _ = _session(model, {"delay": True})
+    diag = diagnose(wheels, model, seed=0)
+    assert diag.effects[0].name == "time_delay", diag.details["log"]
+    assert diag.effects[0].parameters["tau_delay_s"] == pytest.approx(0.02, abs=0.005)
+
+
+def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
+    """Noise only: 'none', nothing invented; JSON/report/improved .tir written atomically."""
+    from tire_model_ros.recording.bag import write_recording
+
+    wheels, _ = _session(model, {}, seed=5)
+    bag = tmp_path / "null_bag"
+    write_recording(bag, wheels)
+    out_json = tmp_path / "diag.json"
+    report = tmp_path / "report"
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
+    cmd = [
+        TOOL,
+        "diagnose",
+        str(bag),
+        "--tir",
+        str(TIR),
+        "--json",
+        str(out_json),
+        "--report",
+        str(report),
+    ]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=240, env=env, check=False)
+    assert res.returncode == 0, res.stderr
+    doc = json.loads(out_json.read_text())
+    _check_json(doc)
+    assert [e["name"] for e in doc["effects"]] == ["none"], res.stdout
+    assert "none" in res.stdout
+    assert (report / "improved.tir").exists()
+    TireModel.from_file(report / "improved.tir")  # a readable property file
+    # Never over an existing output unless asked.
+    res2 = subprocess.run(cmd, capture_output=True, text=True, timeout=240, env=env, check=False)
+    assert res2.returncode == 1 and "exists" in res2.stderr
+    assert json.loads(out_json.read_text()) == doc
+
+
+def test_cli_reports_a_missing_bag_clearly(tmp_path):
+    cmd = [TOOL, "diagnose", str(tmp_path / "nope"), "--tir", str(TIR)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
+    assert res.returncode == 1
+    assert "nope" in res.stderr

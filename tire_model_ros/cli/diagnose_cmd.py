@@ -1,0 +1,124 @@
+"""``tire-model diagnose BAG --tir FILE``: locate, name and model a model/recording mismatch."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HELP = "locate, name and model a model/recording mismatch"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("bag", help="recording: rosbag2 folder, .mcap or .db3 file")
+    parser.add_argument("--tir", required=True, help="the .tir property file to diagnose")
+    parser.add_argument("--json", metavar="OUT", help="write the diagnosis JSON here")
+    parser.add_argument("--report", metavar="DIR", help="write a report with plots into DIR")
+    parser.add_argument(
+        "--out-tir",
+        metavar="FILE",
+        help="write the improved .tir here (default: DIR/improved.tir with --report)",
+    )
+    parser.add_argument(
+        "--wheel",
+        action="append",
+        metavar="PREFIX",
+        help="diagnose only this wheel (repeatable; default: every wheel)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the sweep folds (default 0)")
+    parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
+
+
+def _check_free(path: str | None, force: bool) -> None:
+    if path and Path(path).exists() and not force:
+        raise FileExistsError(f"{path}: exists; not overwriting it (use --force)")
+
+
+def write_json_atomic(obj: dict, path: str | os.PathLike, overwrite: bool = False) -> None:
+    """Write ``obj`` as JSON via a temporary file in the same directory and a rename."""
+    target = Path(path)
+    if target.exists() and not overwrite:
+        raise FileExistsError(f"{target}: exists; not overwriting it (use --force)")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(obj, fh, indent=2, allow_nan=False)
+            fh.write("\n")
+        os.replace(tmp, target)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def improved_tir(diag, source_tir):
+    """TirData of the improved model: fitted coefficients, effect parameters as comments."""
+    notes = ["! tire-model diagnose: improved model (fitted coefficients below)."]
+    for e in diag.effects:
+        if e.name == "none":
+            continue
+        params = ", ".join(f"{k} = {v:.6g}" for k, v in e.parameters.items())
+        notes.append(f"! effect {e.name}{' (concealed)' if e.concealed else ''}: {params}")
+    return dataclasses.replace(
+        source_tir,
+        path=None,
+        params=dict(diag.improved_model.params),
+        preamble=(*source_tir.preamble, *notes),
+    )
+
+
+def run(args) -> int:
+    from tire_model_ros.diagnosis import diagnose
+    from tire_model_ros.model import TireModel, write_tir
+    from tire_model_ros.recording.bag import read_recording
+
+    out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
+    for path in (args.json, args.out_tir):
+        _check_free(path, args.force)
+    if (
+        args.report
+        and Path(args.report).exists()
+        and any(Path(args.report).iterdir())
+        and not args.force
+    ):
+        raise FileExistsError(f"{args.report}: exists and is not empty (use --force)")
+    model = TireModel.from_file(args.tir)
+    wheels = read_recording(args.bag, wheels=args.wheel)
+    t0 = time.perf_counter()
+    diag = diagnose(list(wheels.values()), model, seed=args.seed)
+    elapsed = time.perf_counter() - t0
+
+    print(f"diagnosis of {args.bag} against {args.tir} ({elapsed:.1f} s):")
+    for i, e in enumerate(diag.effects, 1):
+        tag = " (concealed)" if e.concealed else ""
+        print(f"  {i}. {e.name}{tag} on {e.channel}")
+        print(f"     where: {e.where}")
+        print(f"     evidence: {e.evidence}")
+    for ch in diag.fit["heldout_baseline"]:
+        a = diag.fit["heldout_baseline"][ch]["rmse"]
+        b = diag.fit["heldout_improved"][ch]["rmse"]
+        if a is not None and b is not None:
+            unit = "N m" if ch == "Mz" else "N"
+            print(f"  held-out {ch} RMSE: {a:.1f} -> {b:.1f} {unit}")
+    if args.json:
+        write_json_atomic(diag.to_json(), args.json, overwrite=args.force)
+        print(f"wrote {args.json}")
+    if args.report:
+        from tire_model_ros.diagnosis.report import write_report
+
+        path = write_report(diag, wheels, args.report, overwrite=args.force, source=str(args.bag))
+        print(f"wrote {path}")
+    if out_tir:
+        write_tir(
+            improved_tir(diag, model.tir),
+            out_tir,
+            overwrite=args.force or bool(args.report and not args.out_tir),
+        )
+        print(f"wrote {out_tir}")
+    sys.stdout.flush()
+    return 0

@@ -1,0 +1,612 @@
+"""One model per missing-physics candidate, and the predictor that composes them.
+
+A candidate (a :class:`Component`) adds a few parameters to the recording's model and acts in
+one or more of four places:
+
+- ``coef``: updates of the Magic Formula coefficients (scaling factors, TTX/TTY, camber and
+  combined-slip coefficients) -- global for the session;
+- ``inputs``: transformed model inputs (a hidden temperature or gas-pressure state, lagged or
+  delayed slip);
+- ``mu_scale``: a per-sample friction scale (wear, speed-dependent friction);
+- ``output``: additive force offsets.
+
+The predictor evaluates the model once per wheel on the transformed inputs. Every component's
+parameters have bounds and a typical scale (``x_scale`` for the optimiser).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .thermal import delayed, gas_pressure_Pa, relaxed_slip, thermal_state_K
+
+CHANNELS = ("Fx", "Fy", "Mz")
+# Convention for a hidden temperature (PHYSICS.md: gain and TT coefficients are not separately
+# identifiable with T hidden): the node's steady rise at the 95th-percentile frictional power
+# is THERMAL_RISE_REF_K. The TTX/TTY coefficients are fitted on that scale.
+THERMAL_RISE_REF_K = 20.0
+# A tyre's thermal nodes cool within minutes (PHYSICS.md: bulk tau 1-5 min); a slower "thermal"
+# change cannot be told from wear in a session and is left to the drift candidate.
+TAU_MAX_S = 300.0
+TEMP_COEFS_X = ("TTX1", "TTX3")
+TEMP_COEFS_Y = ("TTY1", "TTY3")
+
+
+@dataclass
+class Wheel:
+    """One wheel's samples prepared for the diagnosis (full length, time from 0)."""
+
+    prefix: str
+    t: np.ndarray
+    inputs: dict[str, np.ndarray | None]  # kappa, alpha, gamma, Fz, V, p, T
+    meas: dict[str, np.ndarray]  # measured channels present: Fx, Fy, Mz
+    P: np.ndarray  # frictional power [W] from measured forces
+    E: np.ndarray  # cumulative frictional work [J]
+    Vs: np.ndarray  # sliding speed [m/s]
+    segments: list  # fit.sweeps.Segment, time order
+    seg_id: np.ndarray  # segment number per sample
+    fold: np.ndarray  # 0, 1 (selection folds) or 2 (final held-out) per sample
+    scramble: np.ndarray  # sample order of a segment-shuffled copy of P (control)
+
+    @property
+    def n(self) -> int:
+        return len(self.t)
+
+
+@dataclass
+class Context:
+    """What every component may read: the file's model and the session-wide conventions."""
+
+    model: object  # TireModel of FILE
+    base: dict[str, float]
+    wheels: list[Wheel]
+    channels: tuple[str, ...]
+    sigma: dict[str, float]  # noise level per channel [N or N m]
+    T_amb: float  # ambient of a hidden thermal node = NOMTEMP [degC]
+    k_thermal: float  # K per W (convention above)
+    p_nom: float  # nominal gauge pressure [Pa]
+    E_ref: float  # session's total frictional work per wheel (median) [J]
+    t_end: float  # longest session [s]
+    V0: float  # LONGVL [m/s]
+    informative: dict[str, bool]  # "x": longitudinal slip swept, "y": lateral slip swept
+    moving: dict[str, bool] = field(default_factory=dict)  # slip moves at all (transients)
+    all_channels: tuple[str, ...] = ()  # every measured channel (reported), channels: fitted
+
+
+@dataclass
+class Component:
+    """A candidate model part. ``name`` is the INTERFACE effect word; ``label`` the variant."""
+
+    name: str
+    label: str
+    pnames: list[str]
+    x0: list[float]
+    lo: list[float]
+    hi: list[float]
+    scale: list[float]
+    concealed: bool = False
+    starts: list[dict[str, float]] = field(default_factory=list)  # extra starting points
+    extends = ""  # name of the effect this component refines (not a new effect)
+
+    def coef(self, x: np.ndarray, ctx: Context) -> dict[str, float]:
+        return {}
+
+    def inputs(self, x: np.ndarray, ctx: Context, w: Wheel, inp: dict) -> None:
+        return None
+
+    def mu_scale(self, x: np.ndarray, ctx: Context, w: Wheel) -> np.ndarray | None:
+        return None
+
+    def output(self, x: np.ndarray, ctx: Context, w: Wheel, wi: int, out: dict, rows) -> None:
+        return None
+
+    def uses_T(self) -> bool:
+        return False
+
+    @property
+    def n(self) -> int:
+        return len(self.pnames)
+
+
+# --- the baseline: a light refit of the file's scaling factors ---------------------------
+
+
+class Scaling(Component):
+    """Multiplicative scaling factors LMUX, LKX, LMUY, LKY (the fit that leaves physics out)."""
+
+    def __init__(self, ctx: Context):
+        names = []
+        if ctx.informative["x"]:
+            names += ["LMUX", "LKX"]
+        if ctx.informative["y"]:
+            names += ["LMUY", "LKY"]
+        n = len(names)
+        super().__init__("baseline", "scaling", names, [1.0] * n, [0.5] * n, [1.5] * n, [0.05] * n)
+
+    def coef(self, x, ctx):
+        return {k: ctx.base[k] * float(v) for k, v in zip(self.pnames, x, strict=True)}
+
+
+# --- temperature ---------------------------------------------------------------------------
+
+
+def _temp_coef_names(ctx: Context) -> list[str]:
+    names: list[str] = []
+    if ctx.informative["x"]:
+        names += list(TEMP_COEFS_X)
+    if ctx.informative["y"]:
+        names += list(TEMP_COEFS_Y)
+    return names
+
+
+class ThermalHidden(Component):
+    """Concealed temperature: one node heated by P_fric feeds the model's T input (TTX/TTY).
+
+    ``mode``: "physical" (fitted tau), "memoryless" (tau ~ 0: T follows P_fric at once) or
+    "scrambled" (the same node driven by a segment-shuffled P_fric) -- the last two are controls.
+    """
+
+    def __init__(self, ctx: Context, mode: str = "physical"):
+        coefs = _temp_coef_names(ctx)
+        names = ["tau_T_s", *coefs] if mode != "memoryless" else list(coefs)
+        x0 = ([8.0] if mode != "memoryless" else []) + [0.0] * len(coefs)
+        lo = ([0.3] if mode != "memoryless" else []) + [-3.0] * len(coefs)
+        hi = ([TAU_MAX_S] if mode != "memoryless" else []) + [3.0] * len(coefs)
+        sc = ([5.0] if mode != "memoryless" else []) + [0.1] * len(coefs)
+        super().__init__(
+            "temperature", f"hidden thermal node ({mode})", names, x0, lo, hi, sc, concealed=True
+        )
+        self.mode = mode
+        self.ncoef = len(coefs)
+        if mode != "memoryless":  # the time constant is the non-convex direction
+            self.starts = [{"tau_T_s": 2.0}, {"tau_T_s": 30.0}]
+
+    def uses_T(self) -> bool:
+        return True
+
+    def _tau(self, x) -> float:
+        return 1e-3 if self.mode == "memoryless" else float(x[0])
+
+    def coef(self, x, ctx):
+        k0 = self.n - self.ncoef
+        return {k: ctx.base[k] + float(v) for k, v in zip(self.pnames[k0:], x[k0:], strict=True)}
+
+    def inputs(self, x, ctx, w, inp):
+        P = w.P[w.scramble] if self.mode == "scrambled" else w.P
+        inp["T"] = ctx.T_amb + thermal_state_K(P, w.t, self._tau(x), ctx.k_thermal)
+
+
+class ThermalBulk(Component):
+    """Extension of a hidden thermal node: the slow (carcass) node's loss of grip.
+
+    A second node integrates the frictional work and cools with tau_bulk (1-5 min, PHYSICS.md):
+    dTb/dt = P_fric / E_ref - Tb / tau_bulk (Tb in units of the session's work), and grip scales
+    by (1 - c Tb). Unlike wear it recovers when the tyre cools; it is part of the
+    ``temperature`` effect, tried only once a hidden thermal node is in the model.
+    """
+
+    extends = "temperature"
+
+    def __init__(self, ctx: Context):
+        super().__init__(
+            "temperature",
+            "slow (carcass) node lowering grip",
+            ["tau_bulk_s", "bulk_mu_loss"],
+            [120.0, 0.0],
+            [20.0, -0.6],
+            [TAU_MAX_S, 0.6],
+            [50.0, 0.02],
+            concealed=True,
+        )
+        self.starts = [{"tau_bulk_s": 40.0}, {"tau_bulk_s": 250.0}]
+
+    def mu_scale(self, x, ctx, w):
+        tau = float(x[0])
+        slow = thermal_state_K(w.P, w.t, tau, tau / ctx.E_ref)
+        return 1.0 - float(x[1]) * slow
+
+
+class ThermalRecorded(Component):
+    """Recorded temperature: fit the TTX/TTY coefficients the file lacks or has wrong."""
+
+    def __init__(self, ctx: Context):
+        coefs = _temp_coef_names(ctx)
+        n = len(coefs)
+        super().__init__(
+            "temperature",
+            "recorded temperature, TTX/TTY refit",
+            coefs,
+            [0.0] * n,
+            [-3.0] * n,
+            [3.0] * n,
+            [0.1] * n,
+        )
+
+    def uses_T(self) -> bool:
+        return True
+
+    def coef(self, x, ctx):
+        return {k: ctx.base[k] + float(v) for k, v in zip(self.pnames, x, strict=True)}
+
+
+# --- pressure --------------------------------------------------------------------------------
+
+
+class GasHidden(Component):
+    """Concealed pressure: one gas node heated by P_fric -> gas law -> the file's pressure terms."""
+
+    def __init__(self, ctx: Context):
+        super().__init__(
+            "pressure",
+            "hidden gas node, gas law, file's pressure terms",
+            ["tau_gas_s", "gain_gas_K_per_kW"],
+            [30.0, 2.0],
+            [2.0, 0.0],
+            [TAU_MAX_S, 200.0],
+            [20.0, 2.0],
+            concealed=True,
+        )
+        self.starts = [{"tau_gas_s": 5.0}, {"tau_gas_s": 100.0}]
+
+    def inputs(self, x, ctx, w, inp):
+        rise = thermal_state_K(w.P, w.t, float(x[0]), float(x[1]) * 1e-3)
+        p0 = inp["p"] if inp["p"] is not None else ctx.p_nom
+        inp["p"] = gas_pressure_Pa(p0, rise, ctx.T_amb)
+
+
+class PressureRecorded(Component):
+    """Recorded pressure: refit the file's main pressure terms."""
+
+    NAMES = ("PPX1", "PPX3", "PPY1", "PPY3")
+
+    def __init__(self, ctx: Context):
+        names = [
+            k
+            for k in self.NAMES
+            if (k[2] == "X" and ctx.informative["x"]) or (k[2] == "Y" and ctx.informative["y"])
+        ]
+        n = len(names)
+        super().__init__(
+            "pressure",
+            "recorded pressure, pressure terms refit",
+            names,
+            [0.0] * n,
+            [-3.0] * n,
+            [3.0] * n,
+            [0.1] * n,
+        )
+
+    def coef(self, x, ctx):
+        return {k: ctx.base.get(k, 0.0) + float(v) for k, v in zip(self.pnames, x, strict=True)}
+
+
+# --- transients --------------------------------------------------------------------------------
+
+
+class Relaxation(Component):
+    """First-order lag of slip in travelled distance, the MF 6.1 relaxation lengths.
+
+    sigma_alpha = Kya / Cy and sigma_kappa = Kxk / Cx (Pacejka 2012 §7.2.1, MF 6.1): with the
+    carcass stiffness taken constant, the lengths follow the file's slip stiffnesses in load.
+    Fitted: the lengths at the nominal load FNOMIN.
+    """
+
+    def __init__(self, ctx: Context):
+        names, x0 = [], []
+        if ctx.moving["y"]:
+            names.append("sigma_alpha_m")
+            x0.append(0.3)
+        # sigma_kappa is fitted only where slip ratio is swept in every fold; where it merely
+        # moves, it follows sigma_alpha at the usual ratio (PHYSICS.md: 0.25 m vs ~0.5 m), so
+        # that a lag is not left in one channel while nothing can calibrate a free length.
+        self.kappa_ratio = 0.0
+        if ctx.informative["x"] or (ctx.moving["x"] and not ctx.moving["y"]):
+            names.append("sigma_kappa_m")
+            x0.append(0.2)
+        elif ctx.moving["x"]:
+            self.kappa_ratio = 0.5
+        n = len(names)
+        super().__init__(
+            "relaxation",
+            "first-order lag in travelled distance (MF 6.1 lengths)",
+            names,
+            x0,
+            [0.0] * n,
+            [5.0] * n,
+            [0.2] * n,
+        )
+        self.shape = {w.prefix: _stiffness_shape(ctx, w) for w in ctx.wheels}
+
+    def inputs(self, x, ctx, w, inp):
+        shape = self.shape[w.prefix]
+        for k, v in zip(self.pnames, x, strict=True):
+            key = "alpha" if k == "sigma_alpha_m" else "kappa"
+            inp[key] = relaxed_slip(inp[key], w.t, inp["V"], float(v) * shape[key])
+            if key == "alpha" and self.kappa_ratio > 0:
+                sk = self.kappa_ratio * float(v) * shape["kappa"]
+                inp["kappa"] = relaxed_slip(inp["kappa"], w.t, inp["V"], sk)
+
+
+def _stiffness_shape(ctx: Context, w: Wheel) -> dict[str, np.ndarray]:
+    """Kya(Fz)/Kya(FNOMIN) and Kxk(Fz)/Kxk(FNOMIN) of the file's model, per sample."""
+    Fz = np.maximum(w.inputs["Fz"], 0.0)
+    FN = ctx.base["FNOMIN"]
+    o = ctx.model.evaluate(np.append(Fz, FN), 0.0, 0.0, 0.0)
+    out = {}
+    for key, K in (("alpha", np.abs(np.asarray(o.Kya))), ("kappa", np.abs(np.asarray(o.Kxk)))):
+        ref = K[-1] if np.isfinite(K[-1]) and K[-1] > 0 else 1.0
+        sh = np.nan_to_num(K[:-1] / ref, nan=1.0)
+        out[key] = np.clip(sh, 0.05, 3.0)
+    return out
+
+
+class Delay(Component):
+    """Pure delay of the measured forces against the inputs (fitted over both signs)."""
+
+    def __init__(self, ctx: Context):
+        super().__init__(
+            "time_delay", "pure delay of all inputs", ["tau_delay_s"], [0.01], [-0.3], [0.5], [0.01]
+        )
+
+    def inputs(self, x, ctx, w, inp):
+        tau = float(x[0])
+        for key in ("kappa", "alpha", "gamma", "Fz"):
+            inp[key] = delayed(inp[key], w.t, tau)
+
+
+# --- static terms ------------------------------------------------------------------------------
+
+
+class Offset(Component):
+    """Force offsets per wheel and channel: a constant (load-cell zero) and a part
+    proportional to load (ply-steer, conicity: PHYSICS.md, Fy(alpha = 0) ~ 3 % of Fz)."""
+
+    def __init__(self, ctx: Context):
+        names = []
+        for i, w in enumerate(ctx.wheels):
+            for ch in ctx.channels:
+                if ch in w.meas:
+                    names.append(f"offset_{ch}_{i}")
+                    if np.ptp(w.inputs["Fz"]) > 0.2 * ctx.base["FNOMIN"]:
+                        names.append(f"offsetperFz_{ch}_{i}")
+        scales = [max(ctx.sigma[n.split("_")[1]], 1.0) for n in names]
+        big = [1e5] * len(names)
+        super().__init__(
+            "offset",
+            "force offsets (constant + proportional to load)",
+            names,
+            [0.0] * len(names),
+            [-b for b in big],
+            big,
+            scales,
+        )
+
+    def output(self, x, ctx, w, wi, out, rows):
+        for k, v in zip(self.pnames, x, strict=True):
+            kind, ch, i = k.split("_")
+            if int(i) != wi or ch not in out:
+                continue
+            if kind == "offset":
+                out[ch] = out[ch] + float(v)
+            else:  # N at FNOMIN, scaled with the load
+                out[ch] = out[ch] + float(v) * w.inputs["Fz"][rows] / ctx.base["FNOMIN"]
+
+
+class CoefRefit(Component):
+    """Additive refit of named Magic Formula coefficients (camber, combined slip)."""
+
+    def __init__(
+        self,
+        ctx: Context,
+        name: str,
+        label: str,
+        names: list[str],
+        scales: list[float],
+        multiplicative: bool = False,
+    ):
+        names = [k for k in names if k in ctx.base]
+        sc = [s for k, s in zip(names, scales, strict=False)]
+        if multiplicative:
+            super().__init__(
+                name,
+                label,
+                names,
+                [1.0] * len(names),
+                [0.2] * len(names),
+                [5.0] * len(names),
+                [0.1] * len(names),
+            )
+        else:
+            big = [50.0 * max(s, abs(ctx.base[k])) for k, s in zip(names, sc, strict=True)]
+            super().__init__(
+                name,
+                label,
+                names,
+                [0.0] * len(names),
+                [-b for b in big],
+                big,
+                [max(s, 0.1 * abs(ctx.base[k])) for k, s in zip(names, sc, strict=True)],
+            )
+        self.multiplicative = multiplicative
+
+    def coef(self, x, ctx):
+        if self.multiplicative:
+            return {k: ctx.base[k] * float(v) for k, v in zip(self.pnames, x, strict=True)}
+        return {k: ctx.base[k] + float(v) for k, v in zip(self.pnames, x, strict=True)}
+
+
+def camber_component(ctx: Context) -> Component:
+    names, scales = [], []
+    if ctx.informative["y"]:
+        names += ["PVY3", "PKY6", "PHY3", "PDY3"]
+        scales += [0.1, 0.1, 0.01, 0.5]
+    if ctx.informative["x"]:
+        names += ["PDX3"]
+        scales += [1.0]
+    return CoefRefit(ctx, "camber", "Magic Formula camber coefficients", names, scales)
+
+
+def combined_component(ctx: Context) -> Component:
+    c = CoefRefit(
+        ctx,
+        "combined_slip",
+        "combined-slip weighting (rBx1, rBy1, rCx1, rCy1)",
+        ["RBX1", "RBY1", "RCX1", "RCY1"],
+        [1.0, 1.0, 0.1, 0.1],
+    )
+    # With B = 0 the weighting is flat in B (cos is even): start a zeroed file at a usual B.
+    for i, k in enumerate(c.pnames):
+        if k in ("RBX1", "RBY1") and ctx.base[k] == 0.0:
+            c.x0[i] = 10.0
+        if k in ("RCX1", "RCY1") and ctx.base[k] == 0.0:
+            c.x0[i] = 1.0
+    return c
+
+
+# --- per-sample friction scales ----------------------------------------------------------------
+
+
+class Speed(Component):
+    """Speed-dependent friction mu / (1 + LMUV Vs / V0) (the MF 6.1 form, Vs sliding speed)."""
+
+    def __init__(self, ctx: Context):
+        super().__init__("speed", "mu/(1+LMUV Vs/V0)", ["LMUV"], [0.0], [-0.5], [5.0], [0.05])
+
+    def mu_scale(self, x, ctx, w):
+        return 1.0 / np.maximum(1.0 + float(x[0]) * w.Vs / ctx.V0, 0.05)
+
+
+class Wear(Component):
+    """Never-recovering drift: friction scale linear in cumulative frictional work (wear)."""
+
+    def __init__(self, ctx: Context, driver: str = "work"):
+        label = (
+            "friction falls with cumulative frictional work"
+            if driver == "work"
+            else "friction changes linearly with time (plain trend)"
+        )
+        super().__init__("drift", label, ["drift_mu_per_session"], [0.0], [-0.6], [0.6], [0.02])
+        self.driver = driver
+
+    def mu_scale(self, x, ctx, w):
+        z = w.E / ctx.E_ref if self.driver == "work" else w.t / ctx.t_end
+        return 1.0 - float(x[0]) * z
+
+
+# --- the predictor -----------------------------------------------------------------------------
+
+
+def split_x(components: list[Component], x: np.ndarray) -> list[np.ndarray]:
+    out, i = [], 0
+    for c in components:
+        out.append(np.asarray(x[i : i + c.n], dtype=np.float64))
+        i += c.n
+    return out
+
+
+def _mu_levels(
+    s: np.ndarray, max_levels: int = 4
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Grid levels bracketing each sample's scale, the interpolation weight, the step.
+
+    The step is a power-of-two multiple of 0.01 so that the grid does not move when the
+    parameters move a little (the prediction stays smooth in them).
+    """
+    step = 0.01
+    while (np.max(s) - np.min(s)) / step > max_levels:
+        step *= 2.0
+    q = s / step
+    lo = np.floor(q)
+    f = q - lo
+    return lo.astype(np.int64), lo.astype(np.int64) + 1, f, step
+
+
+def predict(
+    components: list[Component], x: np.ndarray, ctx: Context, wi: int, rows: np.ndarray
+) -> dict[str, np.ndarray]:
+    """Model forces of wheel ``wi`` at sample indices ``rows`` for parameters ``x``."""
+    w = ctx.wheels[wi]
+    xs = split_x(components, x)
+    upd: dict[str, float] = {}
+    for c, xc in zip(components, xs, strict=True):
+        upd.update(c.coef(xc, ctx))
+    inp = dict(w.inputs)
+    for c, xc in zip(components, xs, strict=True):
+        c.inputs(xc, ctx, w, inp)
+    s = None
+    for c, xc in zip(components, xs, strict=True):
+        m = c.mu_scale(xc, ctx, w)
+        if m is not None:
+            s = m if s is None else s * m
+    T_used = any(c.uses_T() for c in components) or w.inputs["T"] is not None
+    args = {
+        k: (None if inp[k] is None else inp[k][rows])
+        for k in ("Fz", "kappa", "alpha", "gamma", "V", "p", "T")
+    }
+    if s is None:
+        out = _evaluate(ctx.model, upd, args)
+    elif not T_used:
+        out = _evaluate_mu_carrier(ctx, upd, args, s[rows])
+    else:
+        out = _evaluate_mu_levels(ctx, upd, args, s[rows])
+    for c, xc in zip(components, xs, strict=True):
+        c.output(xc, ctx, w, wi, out, rows)
+    return out
+
+
+def _evaluate(model, upd: dict, a: dict) -> dict[str, np.ndarray]:
+    m = model.with_params(upd) if upd else model
+    o = m.evaluate(
+        a["Fz"], a["kappa"], a["alpha"], a["gamma"], Vx=a["V"], p=a["p"], T=a["T"], full=False
+    )
+    return {"Fx": np.asarray(o.Fx), "Fy": np.asarray(o.Fy), "Mz": np.asarray(o.Mz)}
+
+
+def _mu_axes(ctx: Context) -> tuple[bool, bool]:
+    """The friction coefficients a per-sample scale acts on: those the recording sweeps.
+
+    A direction that is not swept has no refitted scaling factor either; scaling its friction
+    would only move a channel the data cannot calibrate.
+    """
+    ax, ay = ctx.informative["x"], ctx.informative["y"]
+    return (ax, ay) if (ax or ay) else (True, True)
+
+
+def _evaluate_mu_carrier(ctx: Context, upd: dict, a: dict, s: np.ndarray):
+    """A per-sample friction scale through the model's own temperature input.
+
+    With T unused, setting TTX3 = TTY3 = 1 (other TT terms 0) and T = NOMTEMP * s makes
+    mux, muy scale by exactly s, sample by sample, in one evaluation.
+    """
+    u = dict(upd)
+    u.update({k: 0.0 for k in ("TTX1", "TTX2", "TTX4", "TTY1", "TTY2", "TTY4")})
+    ax, ay = _mu_axes(ctx)
+    u.update({"TTX3": 1.0 if ax else 0.0, "TTY3": 1.0 if ay else 0.0})
+    a = dict(a)
+    a["T"] = ctx.base["NOMTEMP"] * s
+    return _evaluate(ctx.model, u, a)
+
+
+def _evaluate_mu_levels(ctx: Context, upd: dict, a: dict, s: np.ndarray):
+    """A per-sample friction scale when T is in use: interpolate between scaled-model levels."""
+    lo, hi, f, step = _mu_levels(s)
+    out = {ch: np.zeros(len(s)) for ch in CHANNELS}
+    mux0 = upd.get("LMUX", ctx.base["LMUX"])
+    muy0 = upd.get("LMUY", ctx.base["LMUY"])
+    for lev in np.unique(np.concatenate([lo, hi])):
+        sel_lo = lo == lev
+        sel_hi = hi == lev
+        sel = sel_lo | sel_hi
+        u = dict(upd)
+        ax, ay = _mu_axes(ctx)
+        u.update(
+            {"LMUX": mux0 * (lev * step if ax else 1.0), "LMUY": muy0 * (lev * step if ay else 1.0)}
+        )
+        sub = {k: (None if v is None else v[sel]) for k, v in a.items()}
+        o = _evaluate(ctx.model, u, sub)
+        wgt = np.where(sel_lo[sel], 1.0 - f[sel], 0.0) + np.where(sel_hi[sel], f[sel], 0.0)
+        for ch in CHANNELS:
+            out[ch][sel] += wgt * o[ch]
+    return out

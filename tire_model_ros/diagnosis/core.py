@@ -1,0 +1,689 @@
+"""Mismatch diagnosis: replay, locate, name and model the physics a fit leaves out.
+
+1. Replay the recording's inputs through the model; r = measured - model (Fx, Fy, Mz).
+2. Locate the mismatch (channels, time, slip, load, direction, energy put in) on whole sweeps.
+3.-4. Try one model per candidate effect (``candidates.py``) on top of the baseline (the file's
+   model with its scaling factors refitted); keep, step by step, the candidate that best predicts
+   sweeps the fit did not see, if it passes the false-discovery guards (``selection.py``).
+5. Refit the chosen model on all training sweeps and report on a third set of sweeps that neither
+   the fits nor the selection saw.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from tire_model_ros.fit.sweeps import split_segments
+
+from . import candidates as cd
+from . import selection as sel
+from .locate import channel_summary, noise_sigma, where_text
+from .thermal import cumulative_work_J, frictional_power_W
+
+FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows are redundant)
+MIN_SEGMENTS = 6
+INPUT_SMOOTH_S = 0.09  # window of the zero-phase input smoother [s]
+
+
+@dataclass
+class Effect:
+    """One named effect (INTERFACE.md word) with its fitted parameters."""
+
+    name: str
+    concealed: bool
+    channel: str
+    where: str
+    evidence: str
+    parameters: dict[str, float] = field(default_factory=dict)
+    uncertainty: dict[str, float] = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {
+            "name": self.name,
+            "concealed": bool(self.concealed),
+            "channel": self.channel,
+            "where": self.where,
+            "evidence": self.evidence,
+            "parameters": {k: _num(v) for k, v in self.parameters.items()},
+            "uncertainty": {k: _num(v) for k, v in self.uncertainty.items()},
+        }
+
+
+def _num(v: float) -> float | None:
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+@dataclass
+class Diagnosis:
+    effects: list[Effect]
+    fit: dict
+    improved_model: object
+    baseline_model: object
+    predictions: dict[str, dict[str, np.ndarray]]
+    inferred: dict[str, dict[str, np.ndarray]]
+    train_mask: dict[str, np.ndarray]
+    heldout_mask: dict[str, np.ndarray]
+    sweeps: dict[str, list[np.ndarray]]
+    details: dict = field(default_factory=dict)  # selection log, timings (for reports)
+
+    def to_json(self) -> dict:
+        """The INTERFACE.md diagnosis object."""
+        return {"effects": [e.to_json() for e in self.effects], "fit": self.fit}
+
+
+# --- preparation ------------------------------------------------------------------------------
+
+
+def _fill(x: np.ndarray) -> np.ndarray:
+    """Missing samples of an optional channel take the channel's median (never NaN)."""
+    ok = np.isfinite(x)
+    if ok.all():
+        return x
+    return np.where(ok, x, np.median(x[ok]) if ok.any() else 0.0)
+
+
+def _smooth(x: np.ndarray, t: np.ndarray, window_s: float = INPUT_SMOOTH_S) -> np.ndarray:
+    """Zero-phase Savitzky-Golay smoothing of a recorded input (no lag, ramps kept exact).
+
+    Recorded slip carries sensor noise; through the slip stiffness it is as large as the force
+    noise. Left in, any candidate that low-passes the inputs (relaxation, a fractional delay)
+    would gain by denoising rather than by physics. A zero-phase filter takes that away from all
+    candidates alike without shifting anything in time.
+    """
+    dts = np.diff(t)
+    dt = float(np.median(dts[dts > 0])) if np.any(dts > 0) else 1.0
+    w = round(window_s / dt) | 1
+    if w < 5 or len(x) <= w:
+        return x
+    return savgol_filter(x, w, 2, mode="interp")
+
+
+def _prepare_wheel(s, model, rng: np.random.Generator) -> cd.Wheel:
+    n = len(s.t)
+    if n < 50:
+        raise ValueError(f"{s.prefix}: only {n} samples, too few to diagnose")
+    P = model.params
+    V = _fill(np.asarray(s.Vx, float)) if s.Vx is not None else np.full(n, float(P["LONGVL"]))
+    meas = {}
+    for ch in cd.CHANNELS:
+        v = getattr(s, ch)
+        if v is not None and np.isfinite(v).mean() > 0.5:
+            meas[ch] = np.where(np.isfinite(v), v, np.nan)
+    if not meas:
+        raise ValueError(f"{s.prefix}: no measured Fx, Fy or Mz")
+    t = np.asarray(s.t, float) - float(s.t[0])
+    inputs = {
+        "kappa": _smooth(np.nan_to_num(s.kappa), t),
+        "alpha": _smooth(np.nan_to_num(s.alpha), t),
+        "gamma": _smooth(np.nan_to_num(s.gamma), t),
+        "Fz": _smooth(np.nan_to_num(s.Fz), t),
+        "V": _smooth(V, t),
+        "p": None if s.p is None else _fill(np.asarray(s.p, float)),
+        "T": None if s.T is None else _fill(np.asarray(s.T, float)),
+    }
+    Pw = frictional_power_W(
+        np.nan_to_num(meas.get("Fx", np.zeros(n))),
+        np.nan_to_num(meas.get("Fy", np.zeros(n))),
+        V,
+        inputs["kappa"],
+        inputs["alpha"],
+    )
+    Vs = np.abs(V) * np.hypot(inputs["kappa"], np.tan(inputs["alpha"]))
+    segments = split_segments(s)
+    if len(_blocks(segments, np.asarray(s.t, float) - float(s.t[0]))) < MIN_SEGMENTS:
+        # Too few sweeps for sweep-wise validation: fall back to equal time blocks.
+        from tire_model_ros.fit.sweeps import Segment
+
+        segments = [Segment(idx, "steady", {}) for idx in np.array_split(np.arange(n), 9)]
+    # Scores are kept per segment (ramp, steady part, pause): the segments, not the rows, are
+    # the units of the significance test (folds are whole sweeps, see _assign_folds).
+    seg_id = np.empty(n, dtype=np.int64)
+    for i, seg in enumerate(segments):
+        seg_id[seg.index] = i
+    fold = _assign_folds(segments, t, rng, inputs)
+    order = rng.permutation(len(segments))
+    scramble = np.concatenate([segments[i].index for i in order])
+    return cd.Wheel(
+        s.prefix,
+        t,
+        inputs,
+        meas,
+        Pw,
+        cumulative_work_J(Pw, t),
+        Vs,
+        segments,
+        seg_id,
+        fold,
+        scramble,
+    )
+
+
+def _blocks(segments, t: np.ndarray) -> list[list[int]]:
+    """Whole sweeps: runs of segments between pauses (a long run is cut near 15 s pieces).
+
+    The unit of validation is the sweep, not the ramp: the way out and the way back of one
+    sweep stay together, so a held-out sweep tests the model's within-sweep dynamics too.
+    """
+    blocks: list[list[int]] = []
+    cur: list[int] = []
+    for i, seg in enumerate(segments):
+        cur.append(i)
+        if seg.kind == "pause":
+            blocks.append(cur)
+            cur = []
+    if cur:
+        blocks.append(cur)
+    out: list[list[int]] = []
+    for b in blocks:
+        piece: list[int] = []
+        for i in b:
+            piece.append(i)
+            idx = segments[i].index
+            if t[idx[-1]] - t[segments[piece[0]].index[0]] > 15.0 and i != b[-1]:
+                out.append(piece)
+                piece = []
+        if piece:
+            out.append(piece)
+    return out
+
+
+def _assign_folds(
+    segments, t: np.ndarray, rng: np.random.Generator, inputs: dict | None = None
+) -> np.ndarray:
+    """Folds 0/1 (fit/select) and 2 (final held-out) of whole sweeps, balanced in time.
+
+    Sweeps run at a rare condition (pressure or camber away from the session's usual value)
+    are few: they alternate between the two selection folds, per kind of sweep
+    (lateral / longitudinal), so that every selection fit sees one and predicts another; the
+    other sweeps are taken three at a time in time order, each triple getting a random
+    permutation of the folds, so every fold spans the whole session.
+    """
+    fold = np.zeros(len(t), dtype=np.int8)
+    blocks = _blocks(segments, t)
+    rare = [_rare_kind(segments, b, inputs) for b in blocks] if inputs else [None] * len(blocks)
+    turn: dict[str, int] = {}
+    common = []
+    for b, kind in zip(blocks, rare, strict=True):
+        if kind is None:
+            common.append(b)
+            continue
+        f = turn.setdefault(kind, int(rng.integers(2)))
+        turn[kind] = 1 - f
+        for i in b:
+            fold[segments[i].index] = f
+    for j in range(0, len(common), 3):
+        perm = rng.permutation(3)
+        for k, b in enumerate(common[j : j + 3]):
+            for i in b:
+                fold[segments[i].index] = int(perm[k])
+    return fold
+
+
+def _rare_kind(segments, block: list[int], inputs: dict) -> str | None:
+    """'x'/'y' (the slip the sweep excites) if the sweep runs at a rare condition, else None."""
+    idx = np.concatenate([segments[i].index for i in block])
+    rare = False
+    for key, tol in (("p", 0.05),):
+        x = inputs.get(key)
+        if x is not None:
+            ref = float(np.median(x))
+            rare |= abs(float(np.median(x[idx])) - ref) > tol * max(abs(ref), 1e-9)
+    g = inputs["gamma"]
+    rare |= abs(float(np.median(g[idx])) - float(np.median(g))) > np.radians(0.5)
+    if not rare:
+        return None
+    k = float(np.max(np.abs(inputs["kappa"][idx])))
+    a = float(np.max(np.abs(inputs["alpha"][idx])))
+    if k < 0.01 and a < np.radians(1.0):
+        return None  # a pause or hold at the condition: nothing to fit
+    return "x" if k / 0.1 > a / np.radians(5.0) else "y"
+
+
+def _rows(ctx: cd.Context, folds: tuple[int, ...], stride: int) -> list[np.ndarray]:
+    out = []
+    for w in ctx.wheels:
+        ok = np.ones(w.n, dtype=bool)
+        for v in w.meas.values():
+            ok &= np.isfinite(v)
+        idx = np.flatnonzero(np.isin(w.fold, folds) & ok)
+        out.append(idx[::stride])
+    return out
+
+
+def _excited(w: cd.Wheel, key: str, level: float) -> bool:
+    """A slip channel is swept in enough whole sweeps of every fold to be cross-validated."""
+    x = np.abs(w.inputs[key])
+    per_fold = [0, 0, 0]
+    for b in _blocks(w.segments, w.t):
+        idx = np.concatenate([w.segments[i].index for i in b])
+        if np.max(x[idx]) > level:
+            per_fold[int(w.fold[idx[0]])] += 1
+    return min(per_fold) >= 1 and sum(per_fold) >= 4
+
+
+def _context(ws: list[cd.Wheel], model) -> cd.Context:
+    P = dict(model.params)
+    chans = tuple(ch for ch in cd.CHANNELS if any(ch in w.meas for w in ws))
+    # Selection and fitting use the forces; Mz (pneumatic trail, effect-specific) is reported
+    # but only fitted when no force was recorded.
+    fit_chans = tuple(ch for ch in chans if ch != "Mz") or chans
+    inf_x = any("Fx" in w.meas and _excited(w, "kappa", 0.02) for w in ws)
+    inf_y = any("Fy" in w.meas and _excited(w, "alpha", np.radians(2.0)) for w in ws)
+    Pall = np.concatenate([w.P for w in ws])
+    p95 = float(np.percentile(Pall[Pall > 0], 95)) if np.any(Pall > 0) else 1.0
+    p_nom = float(P.get("INFLPRES") or P.get("NOMPRES") or 2e5)
+    return cd.Context(
+        model=model,
+        base=P,
+        wheels=ws,
+        channels=fit_chans,
+        sigma={ch: 1.0 for ch in chans},
+        all_channels=chans,
+        T_amb=float(P.get("NOMTEMP", 25.0)),
+        k_thermal=cd.THERMAL_RISE_REF_K / max(p95, 1e-6),
+        p_nom=p_nom,
+        E_ref=max(float(np.median([w.E[-1] for w in ws])), 1e-6),
+        t_end=max(float(max(w.t[-1] for w in ws)), 1e-3),
+        V0=float(P.get("LONGVL", 16.7)),
+        informative={"x": inf_x, "y": inf_y},
+        moving={
+            "x": inf_x
+            or any(
+                "Fx" in w.meas and np.percentile(np.abs(w.inputs["kappa"]), 95) > 0.01 for w in ws
+            ),
+            "y": inf_y
+            or any(
+                "Fy" in w.meas and np.percentile(np.abs(w.inputs["alpha"]), 95) > np.radians(1)
+                for w in ws
+            ),
+        },
+    )
+
+
+def _candidates(ctx: cd.Context) -> list[cd.Component]:
+    """The candidate models that the recording can tell anything about."""
+    ws = ctx.wheels
+    out: list[cd.Component] = []
+    has_T = any(w.inputs["T"] is not None for w in ws)
+    has_p = any(w.inputs["p"] is not None for w in ws)
+    if has_T:
+        if any(np.nanstd(w.inputs["T"]) > 0.5 for w in ws if w.inputs["T"] is not None):
+            out.append(cd.ThermalRecorded(ctx))
+    else:
+        out += [cd.ThermalHidden(ctx, "physical"), cd.ThermalBulk(ctx)]
+    pressure_terms = any(
+        abs(ctx.base.get(k, 0.0)) > 0
+        for k in ("PPX1", "PPX2", "PPX3", "PPX4", "PPY1", "PPY2", "PPY3", "PPY4")
+    )
+    if has_p:
+        if any(
+            np.nanstd(w.inputs["p"]) > 0.01 * ctx.p_nom for w in ws if w.inputs["p"] is not None
+        ):
+            out.append(cd.PressureRecorded(ctx))
+    elif pressure_terms:
+        out.append(cd.GasHidden(ctx))
+    out += [cd.Relaxation(ctx), cd.Delay(ctx), cd.Offset(ctx)]
+    if any(np.ptp(w.inputs["gamma"]) > np.radians(0.5) for w in ws):
+        out.append(cd.camber_component(ctx))
+    both = np.concatenate(
+        [
+            (np.abs(w.inputs["kappa"]) > 0.01) & (np.abs(w.inputs["alpha"]) > np.radians(1))
+            for w in ws
+        ]
+    )
+    if both.mean() > 0.05 and ctx.informative["x"] and ctx.informative["y"]:
+        out.append(cd.combined_component(ctx))
+    # Sliding speed varies with slip even at a constant wheel speed: speed always applies.
+    out.append(cd.Speed(ctx))
+    out += [cd.Wear(ctx, "work"), cd.Wear(ctx, "time")]
+    return [c for c in out if c.n > 0]
+
+
+# --- diagnosis ----------------------------------------------------------------------------------
+
+
+def diagnose(wheels: Sequence, model, *, seed: int = 0) -> Diagnosis:
+    """Compare ``model`` with recorded ``wheels`` and name the physics it leaves out."""
+    if not wheels:
+        raise ValueError("no wheels to diagnose")
+    rng = np.random.default_rng(seed)
+    ws = [_prepare_wheel(s, model, rng) for s in wheels]
+    ctx = _context(ws, model)
+    n_total = sum(w.n for w in ws)
+    stride = max(1, int(n_total / 3 / FIT_ROWS_PER_FOLD))
+    rows_a, rows_b = _rows(ctx, (0,), stride), _rows(ctx, (1,), stride)
+    rows_ab, rows_c = _rows(ctx, (0, 1), stride), _rows(ctx, (2,), 1)
+
+    # Noise level per channel from the file model's residual (high-pass, robust).
+    full = [np.arange(w.n) for w in ws]
+    for ch in ctx.all_channels:
+        rr, rng_ch = [], []
+        for wi, w in enumerate(ws):
+            if ch in w.meas:
+                out = cd.predict([], np.zeros(0), ctx, wi, full[wi])
+                rr.append(w.meas[ch] - out[ch])
+                rng_ch.append(np.nanmax(w.meas[ch]) - np.nanmin(w.meas[ch]))
+        sig = float(np.median([noise_sigma(r) for r in rr]))
+        ctx.sigma[ch] = max(sig, 1e-3 * max(rng_ch), 1e-6)
+
+    log: list[str] = []
+    base = [cd.Scaling(ctx)]
+    splits = [(rows_a, rows_b), (rows_b, rows_a)]  # two-way sweep-wise cross-validation
+    cur_fits, cur_score, cur_split = sel.cross_validate(base, ctx, splits, [None, None])
+    chosen: list[tuple[sel.Trial, dict]] = []
+    pool = _candidates(ctx)
+    for _step in range(sel.MAX_EFFECTS):
+        names_in = {t.component.name for t, _ in chosen}
+        trials = []
+        in_model = cur_fits[0].components
+        for c in pool:
+            if any(c is k for k in in_model) or (c.name in names_in and not c.extends):
+                continue
+            if c.extends and not any(isinstance(k, cd.ThermalHidden) for k in in_model):
+                continue
+            comps = [*cur_fits[0].components, c]
+            fits, sc, split_sc = sel.cross_validate(
+                comps, ctx, splits, [np.concatenate([f.x, c.x0]) for f in cur_fits], cur_split
+            )
+            tr = sel.Trial(c, fits, sc)
+            tr.split_scores = split_sc
+            (
+                tr.rel_gain,
+                tr.gain_per_sample,
+                tr.sweep_fraction,
+                tr.t_stat,
+                tr.p_sign,
+                tr.weighted_fraction,
+            ) = sel.compare(cur_score, sc)
+            trials.append(tr)
+            log.append(
+                f"step {_step}: {c.name} [{c.label}] held-out rms {sc.rms:.3f} "
+                f"(current {cur_score.rms:.3f}) gain {tr.rel_gain:+.3f} "
+                f"gps {tr.gain_per_sample:+.3f} sweeps {tr.sweep_fraction:.2f} "
+                f"t {tr.t_stat:.1f} p {tr.p_sign:.3f} w {tr.weighted_fraction:.2f} | "
+                + " ".join(
+                    f"{ch} {cur_score.rmse(ch):.1f}->{sc.rmse(ch):.1f}" for ch in ctx.channels
+                )
+            )
+        best = _choose(trials, ctx, cur_fits, splits, log)
+        if best is None:
+            break
+        chosen.append(
+            (best, {ch: (cur_score.rmse(ch), best.heldout.rmse(ch)) for ch in ctx.channels})
+        )
+        cur_fits, cur_score, cur_split = best.fits, best.heldout, best.split_scores
+        if best.component.name == "drift":  # one drift variant is enough
+            pool = [c for c in pool if c.name != "drift"]
+
+    return _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, stride)
+
+
+def _choose(trials, ctx, cur_fits, splits, log) -> sel.Trial | None:
+    """The best passing trial after Occam's rule, the delay sign check and the controls."""
+    ranked = sorted(trials, key=lambda t: t.heldout.rms)
+    for tr in ranked:
+        c = tr.component
+        if not sel.passes(tr):
+            continue
+        if c.name == "time_delay" and min(f.x[-1] for f in tr.fits) <= 0.0:
+            log.append("time_delay rejected: negative fitted delay is not a delay")
+            continue
+        if c.name == "drift":
+            bulk = [t for t in trials if t.component.extends and sel.passes(t)]
+            if bulk and bulk[0].heldout.rms <= tr.heldout.rms * (1.0 + sel.DRIFT_VS_BULK_MARGIN):
+                log.append(
+                    "slow thermal node preferred to drift: the tyre's own heating "
+                    "explains the trend"
+                )
+                tr = bulk[0]
+                c = tr.component
+        if c.name == "relaxation":
+            delay = [t for t in trials if t.component.name == "time_delay" and sel.passes(t)]
+            if delay and delay[0].heldout.rms <= tr.heldout.rms * (1.0 + sel.DELAY_OCCAM_MARGIN):
+                log.append("time_delay preferred to relaxation: one lag for all speeds explains it")
+                tr = delay[0]
+                c = tr.component
+        if c.name == "temperature" and c.concealed and not c.extends:
+            gas = [t for t in trials if t.component.name == "pressure" and sel.passes(t)]
+            if gas and gas[0].heldout.rms <= tr.heldout.rms * (1.0 + sel.OCCAM_MARGIN):
+                log.append("pressure preferred to temperature: file's pressure terms explain it")
+                tr = gas[0]
+                c = tr.component
+        if not _beats_controls(tr, trials, ctx, cur_fits, splits, log):
+            continue
+        tr.passed = True
+        log.append(f"accepted {c.name} [{c.label}]")
+        return tr
+    return None
+
+
+def _beats_controls(tr, trials, ctx, cur_fits, splits, log) -> bool:
+    """A memory effect must beat a memoryless variant, a scrambled driver and a plain trend."""
+    c = tr.component
+    if c.name not in ("temperature", "pressure") or not c.concealed or c.extends:
+        return True
+    controls: list[cd.Component] = []
+    if c.name == "temperature":
+        controls += [cd.ThermalHidden(ctx, "memoryless"), cd.ThermalHidden(ctx, "scrambled")]
+    trend = [t for t in trials if t.component.name == "drift"]
+    for k in controls:
+        comps = [*cur_fits[0].components, k]
+        _, sc, _ = sel.cross_validate(
+            comps, ctx, splits, [np.concatenate([f.x, k.x0]) for f in cur_fits]
+        )
+        tr.controls[k.label] = sc.rms
+    for t in trend:
+        tr.controls[t.component.label] = t.heldout.rms
+    for label, rms in tr.controls.items():
+        if tr.heldout.rms > rms * (1.0 - sel.MIN_CONTROL_MARGIN):
+            log.append(
+                f"{c.name} rejected: not better than control '{label}' "
+                f"({tr.heldout.rms:.3f} vs {rms:.3f})"
+            )
+            return False
+    return True
+
+
+def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, stride) -> Diagnosis:
+    comps = cur_fits[0].components
+    x0 = np.mean([f.x for f in cur_fits], axis=0)
+    final = sel.fit(comps, ctx, rows_ab, x0, max_nfev=80)
+    base_fit = sel.fit(base, ctx, rows_ab, x0[: base[0].n])
+    xs = cd.split_x(comps, final.x)
+    full = [np.arange(w.n) for w in ws]
+
+    preds, inferred, resid = {}, {}, {}
+    for wi, w in enumerate(ws):
+        pb = cd.predict(base, base_fit.x, ctx, wi, full[wi])
+        pi = cd.predict(comps, final.x, ctx, wi, full[wi])
+        preds[w.prefix] = {}
+        for ch in ctx.all_channels:
+            if ch in w.meas:
+                preds[w.prefix][f"baseline_{ch}"] = pb[ch]
+                preds[w.prefix][f"improved_{ch}"] = pi[ch]
+        resid[wi] = {ch: w.meas[ch] - pb[ch] for ch in w.meas}
+        inp = dict(w.inputs)
+        for c, xc in zip(comps, xs, strict=True):
+            c.inputs(xc, ctx, w, inp)
+        inferred[w.prefix] = {"E_f": w.E.copy()}
+        if any(isinstance(c, cd.ThermalHidden) for c in comps):
+            inferred[w.prefix]["T"] = inp["T"]
+        if any(isinstance(c, cd.GasHidden) for c in comps):
+            inferred[w.prefix]["p"] = inp["p"]
+
+    fitjson = _fit_json(ctx, ws, preds)
+    summaries = {ch: channel_summary(ctx, resid, ch) for ch in ctx.all_channels}
+    n_ratio = (
+        np.mean(
+            [
+                summaries[ch]["n_eff"] / max(summaries[ch]["n"], 1)
+                for ch in ctx.channels
+                if summaries[ch]
+            ]
+        )
+        if summaries
+        else 1.0
+    )
+    sd = sel.uncertainty(final, min(1.0, float(n_ratio) * stride))
+    sds = cd.split_x(comps, sd)
+
+    effects = []
+    for tr, per_ch in chosen:
+        c = tr.component
+        k = next(i for i, comp in enumerate(comps) if comp is c)
+        if c.extends:  # a refinement of an effect already named: add its parameters there
+            host = next((e for e in effects if e.name == c.extends), None)
+            if host is not None:
+                host.parameters.update(zip(c.pnames, map(float, xs[k]), strict=True))
+                host.uncertainty.update(zip(c.pnames, map(float, sds[k]), strict=True))
+                host.evidence += "; " + _evidence(
+                    tr,
+                    per_ch,
+                    host.channel,
+                    c,
+                    dict(zip(c.pnames, xs[k], strict=True)),
+                    dict(zip(c.pnames, sds[k], strict=True)),
+                )
+                continue
+        gains = {ch: 1 - b / a for ch, (a, b) in per_ch.items() if a > 0}
+        ch = max(gains, key=gains.get) if gains else ctx.channels[0]
+        params = {n: float(v) for n, v in zip(c.pnames, xs[k], strict=True)}
+        unc = {n: float(v) for n, v in zip(c.pnames, sds[k], strict=True)}
+        if isinstance(c, cd.ThermalHidden):
+            params["gain_K_per_W"] = ctx.k_thermal
+            params["T_amb_C"] = ctx.T_amb
+            params.update({f"{n}_total": ctx.base[n] + params[n] for n in c.pnames[1:]})
+        effects.append(
+            Effect(
+                c.name,
+                c.concealed,
+                ch,
+                _where(ctx, comps, final.x, c, ch),
+                _evidence(tr, per_ch, ch, c, params, unc),
+                params,
+                unc,
+            )
+        )
+    if not effects:
+        worst = max(ctx.channels, key=lambda ch: summaries[ch].get("rmse", 0) / ctx.sigma[ch])
+        effects.append(
+            Effect(
+                "none",
+                False,
+                worst,
+                where_text(summaries[worst], worst),
+                "no candidate beat the baseline on held-out sweeps by the margins "
+                f"(>= {sel.MIN_REL_RMSE_GAIN:.0%} RMSE, >= "
+                f"{sel.MIN_GAIN_PER_SAMPLE:.0%} of noise variance, most sweeps)",
+            )
+        )
+
+    improved = _improved_model(ctx, comps, final.x)
+    baseline_model = ctx.model.with_params(_coefs(ctx, base, base_fit.x))
+    return Diagnosis(
+        effects=effects,
+        fit=fitjson,
+        improved_model=improved,
+        baseline_model=baseline_model,
+        predictions=preds,
+        inferred=inferred,
+        train_mask={w.prefix: w.fold != 2 for w in ws},
+        heldout_mask={w.prefix: w.fold == 2 for w in ws},
+        sweeps={w.prefix: [s.index for s in w.segments] for w in ws},
+        details={
+            "log": log,
+            "sigma": dict(ctx.sigma),
+            "summaries": summaries,
+            "components": [c.label for c in comps],
+        },
+    )
+
+
+def _coefs(ctx, comps, x) -> dict[str, float]:
+    upd: dict[str, float] = {}
+    for c, xc in zip(comps, cd.split_x(comps, x), strict=True):
+        upd.update(c.coef(xc, ctx))
+    return upd
+
+
+def _improved_model(ctx, comps, x):
+    """The file's model with every coefficient the chosen effects fitted (TTX/TTY, LMUV ...)."""
+    upd = _coefs(ctx, comps, x)
+    for c, xc in zip(comps, cd.split_x(comps, x), strict=True):
+        if isinstance(c, cd.Speed) and "LMUV" in ctx.base:
+            upd["LMUV"] = float(xc[0])
+    try:
+        return ctx.model.with_params(upd)
+    except ValueError:
+        upd.pop("LMUV", None)
+        return ctx.model.with_params(upd)
+
+
+def _fit_json(ctx, ws, preds) -> dict:
+    out = {k: {} for k in ("baseline", "improved", "heldout_baseline", "heldout_improved")}
+    for ch in ("Fx", "Fy", "Mz"):
+        if ch not in ctx.all_channels:
+            continue
+        acc = {k: [0.0, 0] for k in out}
+        rng = []
+        for w in ws:
+            if ch not in w.meas:
+                continue
+            m = w.meas[ch]
+            rng.append(np.nanmax(m) - np.nanmin(m))
+            for which, mask in (("", w.fold != 2), ("heldout_", w.fold == 2)):
+                for kind in ("baseline", "improved"):
+                    e = (preds[w.prefix][f"{kind}_{ch}"] - m)[mask]
+                    e = e[np.isfinite(e)]
+                    acc[which + kind][0] += float(e @ e)
+                    acc[which + kind][1] += len(e)
+        span = max(rng) if rng else 0.0
+        for k, (ss, n) in acc.items():
+            rmse = math.sqrt(ss / n) if n else float("nan")
+            out[k][ch] = {"rmse": _num(rmse)}
+            if not k.startswith("heldout"):
+                out[k][ch]["nrmse"] = _num(rmse / span) if span > 0 else None
+    return out
+
+
+def _where(ctx, comps, x, c, ch) -> str:
+    """Where this effect's part of the model acts: model with it minus model without it."""
+    keep = [
+        i for i, k in enumerate(comps) if k is not c and not (k.extends and k.extends == c.name)
+    ]
+    xs = cd.split_x(comps, x)
+    without = [comps[i] for i in keep]
+    x_without = np.concatenate([xs[i] for i in keep]) if keep else np.zeros(0)
+    delta = {}
+    for wi, w in enumerate(ctx.wheels):
+        rows = np.arange(w.n)
+        full = cd.predict(comps, x, ctx, wi, rows)
+        part = cd.predict(without, x_without, ctx, wi, rows)
+        delta[wi] = {k: full[k] - part[k] for k in w.meas}
+    info = channel_summary(ctx, delta, ch)
+    return where_text(info, ch, f"change made by the {c.name} model") if info else ch
+
+
+def _evidence(tr, per_ch, ch, c, params, unc) -> str:
+    a, b = per_ch[ch]
+    parts = [
+        f"held-out {ch} RMSE {a:.1f} -> {b:.1f} N ({(1 - b / a) if a else 0:+.0%})",
+        f"noise-normalised RMS gain {tr.rel_gain:.1%}, better on "
+        f"{tr.sweep_fraction:.0%} of changed held-out segments (sign test p = {tr.p_sign:.2g}, "
+        f"t = {tr.t_stat:.1f}), two-way cross-validation on whole sweeps",
+    ]
+    if tr.controls:
+        parts.append(
+            "beats controls: "
+            + ", ".join(f"{k} {v:.3f}" for k, v in tr.controls.items())
+            + f" vs {tr.heldout.rms:.3f} (held-out RMS in noise units)"
+        )
+    shown = [f"{n} = {params[n]:.4g} +- {unc.get(n, float('nan')):.2g}" for n in c.pnames[:4]]
+    parts.append("; ".join(shown))
+    return f"{c.label}: " + "; ".join(parts)
