@@ -6,9 +6,10 @@ import dataclasses
 import json
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
+
+from tire_model_ros.atomic import write_atomic
 
 HELP = "locate, name and model a model/recording mismatch"
 
@@ -39,21 +40,9 @@ def _check_free(path: str | None, force: bool) -> None:
 
 
 def write_json_atomic(obj: dict, path: str | os.PathLike, overwrite: bool = False) -> None:
-    """Write ``obj`` as JSON via a temporary file in the same directory and a rename."""
-    target = Path(path)
-    if target.exists() and not overwrite:
-        raise FileExistsError(f"{target}: exists; not overwriting it (use --force)")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(obj, fh, indent=2, allow_nan=False)
-            fh.write("\n")
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Write ``obj`` as JSON (no NaN: INTERFACE.md JSON is strict), atomically."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, json.dumps(obj, indent=2, allow_nan=False) + "\n", overwrite=overwrite)
 
 
 def improved_tir(diag, source_tir):

@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from tire_model_ros.atomic import write_atomic
 
 HELP = "evaluate the model on a CSV of inputs"
 REQUIRED = ("Fz", "kappa", "alpha", "gamma", "Vx", "p")
@@ -67,21 +68,14 @@ def read_inputs(path: Path) -> dict[str, np.ndarray]:
 
 
 def write_csv_atomic(path: Path, columns: dict[str, np.ndarray], overwrite: bool) -> None:
-    """Write the columns to ``path`` via a temporary file in the same folder and os.replace."""
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path}: output exists; use --force to overwrite it")
+    """Write the columns to ``path`` atomically; floats with repr() precision."""
     names = list(columns)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            writer = csv.writer(fh)
-            writer.writerow(names)
-            for row in zip(*(columns[n] for n in names), strict=True):
-                writer.writerow([repr(float(v)) if math.isfinite(v) else str(v) for v in row])
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    buf = io.StringIO(newline="")
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(names)
+    for row in zip(*(columns[n] for n in names), strict=True):
+        writer.writerow([repr(float(v)) if math.isfinite(v) else str(v) for v in row])
+    write_atomic(path, buf.getvalue(), overwrite=overwrite)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,16 +7,17 @@ NRMSE = RMSE / (max - min of the measured channel on the same samples), as in IN
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..atomic import write_atomic
 from .core import CHANNELS, evaluate_on, stack_inputs
 
 SETS = ("fitted", "heldout")
@@ -240,15 +241,7 @@ def _clean(obj: Any) -> Any:
 
 
 def _write_atomic(path: Path, data: bytes | str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data.encode() if isinstance(data, str) else data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_atomic(path, data, overwrite=True)  # the report folder was checked as a whole
 
 
 REPORT_FILES = ("fit_report.md", "fit_report.json")
@@ -409,12 +402,6 @@ def _plot_sweeps(result, d: Path, channels: Sequence[str], plt) -> None:
 
 def _save(fig, path: Path) -> None:
     """Atomic PNG write."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=90)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    write_atomic(path, buf.getvalue(), overwrite=True)

@@ -28,12 +28,12 @@ import dataclasses
 import math
 import os
 import re
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
+from ..atomic import write_atomic
 from .params import (
     ALIASES,
     PARAMETERS,
@@ -637,30 +637,4 @@ def write_tir(tir: TirData, path: str | os.PathLike, *, overwrite: bool = False)
     FileExistsError
         if ``path`` exists and ``overwrite`` is False.
     """
-    target = Path(path)
-    if target.exists() and not overwrite:
-        raise FileExistsError(
-            f"{target}: file exists; not overwriting it (use overwrite=True / --force)"
-        )
-    text = tir_text(tir)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        if overwrite:
-            os.replace(tmp, target)
-        else:
-            # link() fails if the target appeared meanwhile: never clobber a file not ours.
-            os.link(tmp, target)
-            os.unlink(tmp)
-    except FileExistsError:
-        os.unlink(tmp)
-        raise FileExistsError(
-            f"{target}: file exists; not overwriting it (use overwrite=True / --force)"
-        ) from None
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_atomic(path, tir_text(tir), overwrite=overwrite)
