@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from series_util import NS, T0, assert_same, random_wheel
 
 from tire_model_ros.recording import cdr
 from tire_model_ros.recording.bag import (
@@ -26,60 +27,9 @@ from tire_model_ros.recording.bag import (
 )
 from tire_model_ros.recording.series import WheelSeries
 
-NS = 1_000_000_000
-T0 = 1_700_000_000 * NS  # a realistic epoch: float seconds cannot hold these to the ns
 
-
-def wheel(prefix="/rig/wheel", n=200, *, p=True, T=True, Vx=True, seed=0, t0_ns=T0):
-    rng = np.random.default_rng(seed)
-    t_ns = t0_ns + np.arange(n, dtype=np.int64) * 1_000_000 + rng.integers(0, 999, n)
-    col = lambda: rng.normal(size=n)  # noqa: E731
-    return WheelSeries(
-        prefix,
-        t_ns / NS,
-        col(),
-        col(),
-        col(),
-        4000 + col(),
-        p=2e5 + col() if p else None,
-        T=30 + col() if T else None,
-        Vx=10 + col() if Vx else None,
-        Fx=col(),
-        Fy=col(),
-        Fz_meas=4000 + col(),
-        Mx=col(),
-        My=col(),
-        Mz=col(),
-        meta={"t_ns": t_ns},
-    )
-
-
-CHANNELS = (
-    "kappa",
-    "alpha",
-    "gamma",
-    "Fz",
-    "p",
-    "T",
-    "Vx",
-    "Fx",
-    "Fy",
-    "Fz_meas",
-    "Mx",
-    "My",
-    "Mz",
-)
-
-
-def assert_same(a: WheelSeries, b: WheelSeries) -> None:
-    assert a.prefix == b.prefix
-    np.testing.assert_array_equal(a.meta["t_ns"], b.meta["t_ns"])
-    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-6)
-    for name in CHANNELS:
-        x, y = getattr(a, name), getattr(b, name)
-        assert (x is None) == (y is None), name
-        if x is not None:
-            np.testing.assert_array_equal(x, y, err_msg=name)
+def wheel(prefix="/rig/wheel", n=200, **kwargs) -> WheelSeries:
+    return random_wheel(prefix, n, **kwargs)
 
 
 # ----------------------------------------------------------------------------- round trips

@@ -12,62 +12,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from series_util import NS, assert_same, random_wheel
 
 from tire_model_ros.recording.bag import RecordingError, read_raw, read_recording, write_recording
 from tire_model_ros.recording.play import load_schedule, select_topics
 from tire_model_ros.recording.series import WheelSeries
 
-NS = 1_000_000_000
-T0 = 1_700_000_000 * NS
 INPUTS = ("slip", "load", "pressure", "temperature", "velocity")
-CHANNELS = (
-    "kappa",
-    "alpha",
-    "gamma",
-    "Fz",
-    "p",
-    "T",
-    "Vx",
-    "Fx",
-    "Fy",
-    "Fz_meas",
-    "Mx",
-    "My",
-    "Mz",
-)
 
 
-def wheel(prefix: str, n: int, seed: int, dt_ns: int = 10_000_000) -> WheelSeries:
-    rng = np.random.default_rng(seed)
-    t_ns = T0 + np.arange(n, dtype=np.int64) * dt_ns + rng.integers(0, 1000, n)
-    c = lambda: rng.normal(size=n)  # noqa: E731
-    return WheelSeries(
-        prefix,
-        t_ns / NS,
-        c(),
-        c(),
-        c(),
-        4000 + c(),
-        p=2e5 + c(),
-        T=30 + c(),
-        Vx=10 + c(),
-        Fx=c(),
-        Fy=c(),
-        Fz_meas=c(),
-        Mx=c(),
-        My=c(),
-        Mz=c(),
-        meta={"t_ns": t_ns},
-    )
-
-
-def assert_same(a: WheelSeries, b: WheelSeries) -> None:
-    np.testing.assert_array_equal(a.meta["t_ns"], b.meta["t_ns"])
-    for name in CHANNELS:
-        x, y = getattr(a, name), getattr(b, name)
-        assert (x is None) == (y is None), name
-        if x is not None:
-            np.testing.assert_array_equal(x, y, err_msg=name)
+def wheel(prefix: str, n: int, seed: int) -> WheelSeries:
+    return random_wheel(prefix, n, seed=seed, dt_ns=10_000_000)
 
 
 # ----------------------------------------------------------------------------- no ROS
