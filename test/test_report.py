@@ -1,0 +1,110 @@
+"""write_report on a real diagnosis of a real rig recording: content, plots, clobber rule."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tire_model_ros.diagnosis import diagnose
+from tire_model_ros.diagnosis.report import effect_sentence, fmt_param, write_report
+from tire_model_ros.model import TireModel
+from tire_model_ros.node.params import default_tir_path
+from tire_model_ros.rig import simulate_session
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def diagnosed():
+    """A short lateral-sweep session, heating with no temperature topic, diagnosed for real."""
+    tir = default_tir_path()
+    assert tir, "config/default.tir must be found"
+    wheels, _truth = simulate_session(tir, "lateral_sweeps", effects={"heating": True},
+                                      omit=["temperature"], seed=5)
+    diag = diagnose(wheels, TireModel.from_file(tir))
+    return diag, wheels
+
+
+def _png_ok(path: Path) -> bool:
+    data = path.read_bytes()
+    return len(data) > 2000 and data[:8] == PNG_MAGIC
+
+
+def test_report_has_every_effect_table_and_plots(diagnosed, tmp_path):
+    diag, wheels = diagnosed
+    out = tmp_path / "rep"
+    md_path = write_report(diag, wheels, out, source="session")
+    assert md_path == out.absolute() / "report.md"
+    md = md_path.read_text()
+    assert diag.effects, "a diagnosis always lists at least one effect (or none)"
+    for e in diag.effects:
+        assert f"**{e.name}**" in md
+        for k in e.parameters:  # each fitted parameter is printed with its value
+            assert k in md
+        if e.where:
+            assert e.where.strip().rstrip(".")[:40] in md
+    # The fit table: one row per channel of the diagnosis, with the held-out figures.
+    for ch, block in diag.fit["heldout_baseline"].items():
+        row = next(line for line in md.splitlines() if line.startswith(f"| {ch} ["))
+        if block.get("rmse") is not None:
+            assert f"{block['rmse']:.3g}"[:3] in row.replace(",", "")
+    prefix = wheels[0].prefix
+    slug = prefix.strip("/").replace("/", "_")
+    for name in ("residual_time", "residual_slip", "fit"):
+        png = out / f"{name}_{slug}.png"
+        assert _png_ok(png), png
+        assert png.name in md  # the report links it
+    inferred = out / f"inferred_{slug}.png"
+    has_T = "T" in (diag.inferred.get(prefix) or {})
+    assert inferred.exists() == has_T  # the inferred temperature is plotted exactly when inferred
+    if has_T:
+        assert _png_ok(inferred)
+    # Nothing else left beside the report dir (temp dirs renamed or removed).
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rep"]
+
+
+def test_refuses_to_clobber_unless_asked(diagnosed, tmp_path):
+    diag, wheels = diagnosed
+    out = tmp_path / "rep"
+    out.mkdir()
+    keep = out / "notes.txt"
+    keep.write_text("an engineer's notes")
+    with pytest.raises(FileExistsError, match="not empty"):
+        write_report(diag, wheels, out)
+    assert keep.read_text() == "an engineer's notes"  # untouched
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rep"]  # no temp dir left behind
+
+    write_report(diag, wheels, out, overwrite=True)  # replaces the directory as a whole
+    assert not keep.exists()
+    assert (out / "report.md").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rep"]
+
+
+def test_empty_dir_is_used_and_file_target_refused(diagnosed, tmp_path):
+    diag, wheels = diagnosed
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert write_report(diag, wheels, empty).is_file()
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    with pytest.raises(FileExistsError, match="not a directory"):
+        write_report(diag, {w.prefix: w for w in wheels}, a_file, overwrite=True)
+    assert a_file.read_text() == "x"
+
+
+def test_parameter_and_sentence_formatting():
+    assert fmt_param("TTY3", -0.12345, 0.0123) == "TTY3 = -0.123 ± 0.012"
+    assert fmt_param("tau_s", 0.02, None) == "tau_s = 0.0200"
+    assert fmt_param("x", 12345.6, 250.0) == "x = 12346 ± 250"
+
+    class E:  # the Effect shape: attributes only
+        name, concealed, channel = "temperature", True, "Fy"
+        where, evidence = "t = 10-90 s, above 4 deg", "beats a time trend on held-out sweeps."
+        parameters, uncertainty = {"TTY3": -0.2}, {"TTY3": 0.05}
+
+    text = effect_sentence(E())
+    assert text.startswith("**temperature** (concealed")
+    assert "TTY3 = -0.200 ± 0.050" in text and "where: t = 10-90 s" in text
+    assert "\n   - evidence: beats a time trend" in text
