@@ -1,0 +1,72 @@
+"""The node on a recording: ``tire-model play`` into the node, ``tire-model record`` of its
+forces, compared with ``tire-model eval`` on the same inputs. Real processes, real bags."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import ros_util
+
+from tire_model_ros.recording.bag import decode_topic, read_raw, read_recording, write_recording
+from tire_model_ros.rig import simulate_session
+
+ROOT = Path(__file__).resolve().parents[1]
+TIR = ROOT / "config" / "default.tir"
+PREFIX = "/rig/wheel"
+
+
+def cli(*args: str) -> list[str]:
+    exe = Path(sys.executable).parent / "tire-model"
+    head = [str(exe)] if exe.exists() else [sys.executable, "-m", "tire_model_ros.cli"]
+    return [*head, *args]
+
+
+def eval_csv(tmp_path: Path, w) -> np.ndarray:
+    """``tire-model eval`` on the recorded inputs: rows of Fx, Fy, Mx, My, Mz."""
+    cols = {"Fz": w.Fz, "kappa": w.kappa, "alpha": w.alpha, "gamma": w.gamma, "Vx": w.Vx,
+            "p": w.p, "T": w.T}  # fmt: skip
+    src, out = tmp_path / "in.csv", tmp_path / "out.csv"
+    np.savetxt(src, np.column_stack(list(cols.values())), delimiter=",", header=",".join(cols),
+               comments="", fmt="%.17g")  # fmt: skip
+    done = subprocess.run(cli("eval", "--tir", str(TIR), str(src), "-o", str(out)),
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    table = np.genfromtxt(out, delimiter=",", names=True)
+    return np.column_stack([table[k] for k in ("Fx", "Fy", "Mx", "My", "Mz")])
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(240)
+def test_node_on_played_recording_reproduces_eval(tmp_path):
+    wheels, _ = simulate_session(str(TIR), "lateral_sweeps", effects={"heating": True}, seed=4,
+                                 rate_hz=20.0)  # fmt: skip
+    w = wheels[0].select(wheels[0].t < wheels[0].t[0] + 25.0)
+    write_recording(tmp_path / "run", [w])
+    rec = read_recording(tmp_path / "run")[PREFIX]  # exactly what play will publish
+    env = ros_util.ros_env()
+    node = ros_util.NodeProcess([*ros_util.node_command(), "--ros-args", "-p", f"tir_file:={TIR}",
+                                 "-p", f'wheels:=["{PREFIX}"]'], env)  # fmt: skip
+    recorder = ros_util.NodeProcess(cli("record", "-o", str(tmp_path / "forces"), "--wheels",
+                                        PREFIX, "--count", str(len(rec)), "--duration", "150"),
+                                    env)  # fmt: skip
+    try:
+        ros_util.wait_for(lambda: "wheels" in node.log(), 90, "the node to start")
+        ros_util.wait_for(lambda: "recording" in recorder.log(), 60, "the recorder to start")
+        play = subprocess.run(cli("play", str(tmp_path / "run"), "--rate", "4", "--wait", "20"),
+                              env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
+        assert play.returncode == 0, play.stderr
+        recorder.proc.wait(timeout=60)
+    finally:
+        node.stop()
+        rc, log = recorder.stop()
+    assert rc == 0, log  # the recorder stopped by itself after --count messages
+    ch = decode_topic(read_raw(tmp_path / "forces"), f"{PREFIX}/forces")
+    t_ns = rec.meta["t_ns"]
+    assert np.array_equal(ch.stamp_ns, t_ns), "one forces message per slip, with its stamp"
+    node_out = ch.values[:, [0, 1, 3, 4, 5]]  # force.x, force.y, torque.x, torque.y, torque.z
+    np.testing.assert_allclose(ch.values[:, 2], rec.Fz, rtol=1e-12)
+    np.testing.assert_allclose(node_out, eval_csv(tmp_path, rec), rtol=1e-9, atol=1e-6)
