@@ -30,6 +30,9 @@ THERMAL_RISE_REF_K = 20.0
 # A tyre's thermal nodes cool within minutes (PHYSICS.md: bulk tau 1-5 min); a slower "thermal"
 # change cannot be told from wear in a session and is left to the drift candidate.
 TAU_MAX_S = 300.0
+# The hidden thermal node is the fast (tread surface) node, tau of seconds (PHYSICS.md); it is
+# always tried with the slow (carcass) node, whose time constants start where the fast ones end.
+TAU_FAST_MAX_S = 20.0
 TEMP_COEFS_X = ("TTX1", "TTX3")
 TEMP_COEFS_Y = ("TTY1", "TTY3")
 
@@ -153,7 +156,7 @@ class ThermalHidden(Component):
         names = ["tau_T_s", *coefs] if mode != "memoryless" else list(coefs)
         x0 = ([8.0] if mode != "memoryless" else []) + [0.0] * len(coefs)
         lo = ([0.3] if mode != "memoryless" else []) + [-3.0] * len(coefs)
-        hi = ([TAU_MAX_S] if mode != "memoryless" else []) + [3.0] * len(coefs)
+        hi = ([TAU_FAST_MAX_S] if mode != "memoryless" else []) + [3.0] * len(coefs)
         sc = ([5.0] if mode != "memoryless" else []) + [0.1] * len(coefs)
         super().__init__(
             "temperature", f"hidden thermal node ({mode})", names, x0, lo, hi, sc, concealed=True
@@ -161,7 +164,7 @@ class ThermalHidden(Component):
         self.mode = mode
         self.ncoef = len(coefs)
         if mode != "memoryless":  # the time constant is the non-convex direction
-            self.starts = [{"tau_T_s": 2.0}, {"tau_T_s": 30.0}]
+            self.starts = [{"tau_T_s": 2.0}, {"tau_T_s": 15.0}]
 
     def uses_T(self) -> bool:
         return True
@@ -184,7 +187,7 @@ class ThermalBulk(Component):
     A second node integrates the frictional work and cools with tau_bulk (1-5 min, PHYSICS.md):
     dTb/dt = P_fric / E_ref - Tb / tau_bulk (Tb in units of the session's work), and grip scales
     by (1 - c Tb). Unlike wear it recovers when the tyre cools; it is part of the
-    ``temperature`` effect, tried only once a hidden thermal node is in the model.
+    ``temperature`` effect, tried together with the hidden thermal node (core._parts).
     """
 
     extends = "temperature"
@@ -195,7 +198,7 @@ class ThermalBulk(Component):
             "slow (carcass) node lowering grip",
             ["tau_bulk_s", "bulk_mu_loss"],
             [120.0, 0.0],
-            [20.0, -0.6],
+            [TAU_FAST_MAX_S, -0.6],
             [TAU_MAX_S, 0.6],
             [50.0, 0.02],
             concealed=True,

@@ -387,12 +387,13 @@ def diagnose(wheels: Sequence, model, *, seed: int = 0) -> Diagnosis:
                 continue
             if c.extends and not any(isinstance(k, cd.ThermalHidden) for k in in_model):
                 continue
-            comps = [*cur_fits[0].components, c]
-            fits, sc, split_sc = sel.cross_validate(
-                comps, ctx, splits, [np.concatenate([f.x, c.x0]) for f in cur_fits], cur_split
-            )
+            parts = _parts(c, pool, in_model)
+            comps = [*cur_fits[0].components, *parts]
+            x0s = [np.concatenate([f.x, *(p.x0 for p in parts)]) for f in cur_fits]
+            fits, sc, split_sc = sel.cross_validate(comps, ctx, splits, x0s, cur_split)
             tr = sel.Trial(c, fits, sc)
             tr.split_scores = split_sc
+            tr.parts = parts
             (
                 tr.rel_gain,
                 tr.gain_per_sample,
@@ -403,8 +404,8 @@ def diagnose(wheels: Sequence, model, *, seed: int = 0) -> Diagnosis:
             ) = sel.compare(cur_score, sc)
             trials.append(tr)
             log.append(
-                f"step {_step}: {c.name} [{c.label}] held-out rms {sc.rms:.3f} "
-                f"(current {cur_score.rms:.3f}) gain {tr.rel_gain:+.3f} "
+                f"step {_step}: {c.name} [{' + '.join(p.label for p in parts)}] "
+                f"held-out rms {sc.rms:.3f} (current {cur_score.rms:.3f}) gain {tr.rel_gain:+.3f} "
                 f"gps {tr.gain_per_sample:+.3f} sweeps {tr.sweep_fraction:.2f} "
                 f"t {tr.t_stat:.1f} p {tr.p_sign:.3f} w {tr.weighted_fraction:.2f} | "
                 + " ".join(
@@ -424,6 +425,26 @@ def diagnose(wheels: Sequence, model, *, seed: int = 0) -> Diagnosis:
     return _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, stride)
 
 
+def _parts(c: cd.Component, pool, in_model) -> list[cd.Component]:
+    """What trying ``c`` adds to the model: a first hidden thermal node comes with its slow node.
+
+    The tyre heats on two time scales (PHYSICS.md: tread surface in seconds, carcass in
+    minutes). One node alone fits either, and on the slow part loses to a plain drift, so drift
+    would be named before the heating it stands in for. The thermal hypothesis therefore
+    competes in its two-node form (one effect, "temperature"). The slow node goes first so that
+    the fit's alternative starts apply to the fast node's time constant (see ``sel.fit``).
+    """
+    first = not any(isinstance(k, cd.ThermalHidden) for k in in_model)
+    if isinstance(c, cd.ThermalHidden) and first:
+        return [*(k for k in pool if isinstance(k, cd.ThermalBulk)), c]
+    return [c]
+
+
+def _slow_node(tr: sel.Trial) -> bool:
+    """The trial adds a slow thermal node (alone, or with its hidden thermal node)."""
+    return any(p.extends for p in tr.parts)
+
+
 def _choose(trials, ctx, cur_fits, splits, log) -> sel.Trial | None:
     """The best passing trial after Occam's rule, the delay sign check and the controls."""
     ranked = sorted(trials, key=lambda t: t.heldout.rms)
@@ -435,8 +456,13 @@ def _choose(trials, ctx, cur_fits, splits, log) -> sel.Trial | None:
             log.append("time_delay rejected: negative fitted delay is not a delay")
             continue
         if c.name == "drift":
-            bulk = [t for t in trials if t.component.extends and sel.passes(t)]
-            if bulk and bulk[0].heldout.rms <= tr.heldout.rms * (1.0 + sel.DRIFT_VS_BULK_MARGIN):
+            # Only a slow node that itself passes (and beats its controls) may stand in for drift.
+            bulk = [t for t in trials if _slow_node(t) and sel.passes(t)]
+            if (
+                bulk
+                and bulk[0].heldout.rms <= tr.heldout.rms * (1.0 + sel.DRIFT_VS_BULK_MARGIN)
+                and _beats_controls(bulk[0], trials, ctx, cur_fits, splits, log)
+            ):
                 log.append(
                     "slow thermal node preferred to drift: the tyre's own heating "
                     "explains the trend"
@@ -464,22 +490,13 @@ def _choose(trials, ctx, cur_fits, splits, log) -> sel.Trial | None:
 
 
 def _beats_controls(tr, trials, ctx, cur_fits, splits, log) -> bool:
-    """A memory effect must beat a memoryless variant, a scrambled driver and a plain trend."""
+    """A memory effect must beat a memoryless variant, a scrambled driver and a plain trend
+    (the trend: not for a thermal node tried with its slow node, see _control_scores)."""
     c = tr.component
     if c.name not in ("temperature", "pressure") or not c.concealed or c.extends:
         return True
-    controls: list[cd.Component] = []
-    if c.name == "temperature":
-        controls += [cd.ThermalHidden(ctx, "memoryless"), cd.ThermalHidden(ctx, "scrambled")]
-    trend = [t for t in trials if t.component.name == "drift"]
-    for k in controls:
-        comps = [*cur_fits[0].components, k]
-        _, sc, _ = sel.cross_validate(
-            comps, ctx, splits, [np.concatenate([f.x, k.x0]) for f in cur_fits]
-        )
-        tr.controls[k.label] = sc.rms
-    for t in trend:
-        tr.controls[t.component.label] = t.heldout.rms
+    if not tr.controls:  # computed once (the drift rule in _choose may ask first)
+        _control_scores(tr, trials, ctx, cur_fits, splits)
     for label, rms in tr.controls.items():
         if tr.heldout.rms > rms * (1.0 - sel.MIN_CONTROL_MARGIN):
             log.append(
@@ -488,6 +505,28 @@ def _beats_controls(tr, trials, ctx, cur_fits, splits, log) -> bool:
             )
             return False
     return True
+
+
+def _control_scores(tr, trials, ctx, cur_fits, splits) -> None:
+    """Held-out RMS of the controls of ``tr``, fitted in the same form (with its slow node).
+
+    With a slow node the thermal model is itself a trend: the controls then test its fast node
+    (memoryless, scrambled, each with the same slow node), and its contest with drift is the
+    drift-vs-bulk rule in _choose, not a control.
+    """
+    c = tr.component
+    slow = [p for p in tr.parts if p is not c]
+    controls: list[cd.Component] = []
+    if c.name == "temperature":
+        controls += [cd.ThermalHidden(ctx, "memoryless"), cd.ThermalHidden(ctx, "scrambled")]
+    for k in controls:
+        comps = [*cur_fits[0].components, *slow, k]
+        x0s = [np.concatenate([f.x, *(p.x0 for p in slow), k.x0]) for f in cur_fits]
+        _, sc, _ = sel.cross_validate(comps, ctx, splits, x0s)
+        tr.controls[k.label] = sc.rms
+    for t in trials if not slow else []:
+        if t.component.name == "drift":
+            tr.controls[t.component.label] = t.heldout.rms
 
 
 def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, stride) -> Diagnosis:
@@ -534,22 +573,21 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
     sds = cd.split_x(comps, sd)
 
     effects = []
-    for tr, per_ch in chosen:
-        c = tr.component
+    for tr, per_ch, c in _named_parts(chosen):
         k = next(i for i, comp in enumerate(comps) if comp is c)
         if c.extends:  # a refinement of an effect already named: add its parameters there
             host = next((e for e in effects if e.name == c.extends), None)
             if host is not None:
                 host.parameters.update(zip(c.pnames, map(float, xs[k]), strict=True))
                 host.uncertainty.update(zip(c.pnames, map(float, sds[k]), strict=True))
-                host.evidence += "; " + _evidence(
-                    tr,
-                    per_ch,
-                    host.channel,
-                    c,
-                    dict(zip(c.pnames, xs[k], strict=True)),
-                    dict(zip(c.pnames, sds[k], strict=True)),
-                )
+                pv = dict(zip(c.pnames, xs[k], strict=True))
+                ps = dict(zip(c.pnames, sds[k], strict=True))
+                if c is tr.component:  # tried on its own: its own held-out evidence
+                    host.evidence += "; " + _evidence(tr, per_ch, host.channel, c, pv, ps)
+                else:  # tried with its host: the host's evidence covers both
+                    host.evidence += f"; with {c.label}: " + "; ".join(
+                        f"{n} = {pv[n]:.4g} +- {ps[n]:.2g}" for n in c.pnames
+                    )
                 continue
         gains = {ch: 1 - b / a for ch, (a, b) in per_ch.items() if a > 0}
         ch = max(gains, key=gains.get) if gains else ctx.channels[0]
@@ -603,6 +641,14 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
             "components": [c.label for c in comps],
         },
     )
+
+
+def _named_parts(chosen):
+    """(trial, per-channel RMSE, component) in the order effects are named: a trial's
+    refinements after the component they refine."""
+    for tr, per_ch in chosen:
+        for c in sorted(tr.parts or [tr.component], key=lambda p: bool(p.extends)):
+            yield tr, per_ch, c
 
 
 def _coefs(ctx, comps, x) -> dict[str, float]:

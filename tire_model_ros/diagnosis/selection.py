@@ -27,8 +27,8 @@ MIN_WEIGHTED_FRACTION = 0.8  # ... or >= 80 % of the total change is improvement
 MIN_T_ALT = 2.0  # ... with t >= 2
 MIN_CONTROL_MARGIN = 0.02  # >= 2 % lower held-out RMSE than each control
 OCCAM_MARGIN = 0.02  # a 2-parameter file-shaped effect wins within 2 % of a freer one
-# Once the tyre's heating is established, a slow trend is first taken as its slow (carcass)
-# node; wear (never recovering) must then be clearly better.
+# A slow trend is first taken as the tyre's slow (carcass) thermal node, when the heating it
+# belongs to passes its controls; wear (never recovering) must then be clearly better.
 DRIFT_VS_BULK_MARGIN = 0.15
 # A pure delay (one parameter, the same lag at every speed) is preferred to relaxation (lengths
 # per direction, lag ~ sigma/V) unless relaxation predicts clearly better.
@@ -252,6 +252,8 @@ class Trial:
     passed: bool = False
     reason: str = ""
     split_scores: list[Score] = field(default_factory=list)
+    # The components the trial adds: ``component`` and any refinement tried with it.
+    parts: list[Component] = field(default_factory=list)
 
 
 def compare(cur: Score, new: Score) -> tuple[float, float, float, float, float, float]:
