@@ -22,7 +22,7 @@ setup(
     maintainer_email="dev@tire-model-ros.invalid",
     description="Extended Magic Formula tyre model: wheel-force node, refit tool, mismatch diagnosis.",
     license="BSD-3-Clause",
-    python_requires=">=3.10",
+    python_requires=">=3.11",
     entry_points={
         "console_scripts": [
             "tire_model_node = tire_model_ros.node:main",
