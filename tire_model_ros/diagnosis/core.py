@@ -22,7 +22,7 @@ from tire_model_ros.fit.sweeps import split_segments
 
 from . import candidates as cd
 from . import selection as sel
-from .locate import channel_summary, noise_sigma, where_text
+from .locate import channel_summary, residual_sigma, where_text
 from .thermal import cumulative_work_J, frictional_power_W
 
 FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows are redundant)
@@ -369,7 +369,7 @@ def diagnose(wheels: Sequence, model, *, seed: int = 0) -> Diagnosis:
                 out = cd.predict([], np.zeros(0), ctx, wi, full[wi])
                 rr.append(w.meas[ch] - out[ch])
                 rng_ch.append(np.nanmax(w.meas[ch]) - np.nanmin(w.meas[ch]))
-        sig = float(np.median([noise_sigma(r) for r in rr]))
+        sig = float(np.median([residual_sigma(r) for r in rr]))
         ctx.sigma[ch] = max(sig, 1e-3 * max(rng_ch), 1e-6)
 
     log: list[str] = []

@@ -9,18 +9,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..fit.sweeps import noise_sigma
 from .candidates import Context
 
 PAUSE_KINDS = ("pause",)
 
 
-def noise_sigma(r: np.ndarray) -> float:
-    """White-noise level of a residual from its second differences (robust MAD)."""
+def residual_sigma(r: np.ndarray) -> float:
+    """White-noise level of a residual (:func:`noise_sigma`); plain std for very short ones."""
     r = r[np.isfinite(r)]
     if len(r) < 8:
         return float(np.std(r)) if len(r) else 0.0
-    d2 = np.diff(r, 2)
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+    return noise_sigma(r)
 
 
 def n_effective(r: np.ndarray) -> float:

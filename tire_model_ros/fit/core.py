@@ -22,6 +22,8 @@ from scipy.optimize import least_squares
 
 from tire_model_ros.recording.series import WheelSeries
 
+from .sweeps import noise_sigma
+
 INPUTS = ("Fz", "kappa", "alpha", "gamma", "Vx", "p", "T")
 OPTIONAL_INPUTS = ("Vx", "p", "T")
 CHANNELS = ("Fx", "Fy", "Mx", "My", "Mz")
@@ -73,20 +75,6 @@ def default_scale(name: str, x0: float) -> float:
     else:
         floor = 0.1
     return max(abs(x0), floor)
-
-
-def noise_sigma(y: np.ndarray) -> float:
-    """Robust white-noise level of a sampled signal: MAD of its second differences / sqrt(6).
-
-    Smooth force curves nearly cancel in second differences at rig sample rates, the noise does
-    not. NaN samples are skipped.
-    """
-    y = np.asarray(y, dtype=np.float64)
-    y = y[np.isfinite(y)]
-    if len(y) < 5:
-        return 0.0
-    d2 = np.diff(y, 2)
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
 
 
 def _as_list(value: Any, lengths: Sequence[int], what: str) -> list[np.ndarray]:

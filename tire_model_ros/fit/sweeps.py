@@ -78,11 +78,17 @@ def _moving_mean(x: np.ndarray, w: int) -> np.ndarray:
     return (c[hi] - c[lo]) / (hi - lo)
 
 
-def _noise_sigma(x: np.ndarray) -> float:
-    """Robust white-noise level of ``x``: MAD of second differences (ramps cancel in them)."""
-    if len(x) < 5:
+def noise_sigma(y: np.ndarray) -> float:
+    """Robust white-noise level of a sampled signal: MAD of its second differences / sqrt(6).
+
+    Smooth force curves and slip ramps nearly cancel in second differences at rig sample
+    rates, the noise does not. NaN samples are skipped; fewer than 5 samples give 0.
+    """
+    y = np.asarray(y, dtype=np.float64)
+    y = y[np.isfinite(y)]
+    if len(y) < 5:
         return 0.0
-    d2 = np.diff(x, 2)
+    d2 = np.diff(y, 2)
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
 
 
@@ -118,7 +124,7 @@ def _direction_state(
     lo, hi = np.clip(i - h, 0, n - 1), np.clip(i + h, 0, n - 1)
     dt_win = np.maximum(t[hi] - t[lo], dt)
     rate = (xs[hi] - xs[lo]) / dt_win
-    sigma_rate = _noise_sigma(x) * np.sqrt(2.0 / w) / (w * dt)
+    sigma_rate = noise_sigma(x) * np.sqrt(2.0 / w) / (w * dt)
     thr = max(6.0 * sigma_rate, 0.01 * span)  # 1 % of the range per second counts as held
     state = np.zeros(len(x), dtype=np.int8)
     state[rate > thr] = 1
