@@ -17,54 +17,16 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import coef as c
 from .kernel import N_FORCES, N_OUT, OUT_NAMES, evaluate_batch, evaluate_point
+from .params import PARAMETERS
 
 if TYPE_CHECKING:
     from .tir import TirData
-
-# Defaults for coefficients a property file may leave out (older formats, MF 5.2).
-_LIMIT_DEFAULTS = {
-    "PRESMIN": -math.inf, "PRESMAX": math.inf, "FZMIN": 0.0, "FZMAX": math.inf,
-    "KPUMIN": -math.inf, "KPUMAX": math.inf, "ALPMIN": -math.inf, "ALPMAX": math.inf,
-    "CAMMIN": -math.inf, "CAMMAX": math.inf,
-}  # fmt: skip
-_OTHER_DEFAULTS = {"NOMTEMP": 25.0, "VXLOW": 1.0, "Q_RE0": 1.0, "PKY4": 2.0, "QCZ1": 1.0}
-_SCALING = frozenset(c.NAMES[c.LFZO : c.LSGAL + 1])
-
-# Coefficients that divide or shape the equations: with_params rejects values <= 0
-_POSITIVE = (
-    "FNOMIN", "NOMPRES", "NOMTEMP", "UNLOADED_RADIUS", "LONGVL", "PCX1", "PCY1", "QCZ1",
-    "LFZO", "LMUY", "VERTICAL_STIFFNESS",
-)  # fmt: skip
-
-
-def _default(name: str) -> float:
-    if name in _SCALING:
-        return 1.0
-    if name in _LIMIT_DEFAULTS:
-        return _LIMIT_DEFAULTS[name]
-    return _OTHER_DEFAULTS.get(name, 0.0)
-
-
-def _check_value(name: str, value: Any) -> float:
-    """Return ``value`` as float or raise ValueError naming ``name`` and the reason."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"parameter {name}: {value!r} is not a number") from None
-    if not math.isfinite(v):
-        raise ValueError(f"parameter {name}: value {v} is not finite")
-    if name in _POSITIVE and v <= 0.0:
-        raise ValueError(f"parameter {name}: must be > 0 (got {v}); it is a divisor or shape")
-    if name == "VXLOW" and v < 0.0:
-        raise ValueError(f"parameter {name}: must be >= 0 (got {v})")
-    return v
-
 
 def _pressure_nominal(params: Mapping[str, float]) -> float:
     """INFLPRES if given, else NOMPRES (the 'None' pressure of evaluate)."""
@@ -130,7 +92,8 @@ class TireModel:
         params = dict(tir.params)
         params["FITTYP"] = float(tir.fittyp)
         for name in c.NAMES:  # TirData from read_tir has them all; a hand-built one may not
-            params.setdefault(name, _default(name))
+            if name not in params:
+                params[name] = PARAMETERS[name].default
         P = np.array([float(params[name]) for name in c.NAMES], dtype=np.float64)
         P.setflags(write=False)
         self._P = P
@@ -168,15 +131,8 @@ class TireModel:
             Unknown name, non-finite value, or a value that breaks the equations (e.g.
             FNOMIN <= 0); the message names the parameter.
         """
-        checked = {}
-        for name, value in updates.items():
-            key = str(name).upper()
-            if key == "FITTYP":
-                raise ValueError("parameter FITTYP: the model version cannot be changed")
-            if key not in self._params:
-                raise ValueError(f"parameter {name}: unknown coefficient name")
-            checked[key] = _check_value(key, value)
-        return TireModel(self._tir.with_params(checked))
+        # One validation for the node, the fit and the diagnosis: the parameter table's ranges.
+        return TireModel(self._tir.with_params(updates))
 
     def _inputs(self, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega):
         Vx = self._params["LONGVL"] if Vx is None else Vx
