@@ -7,6 +7,7 @@ caller asked for it (``overwrite=True``, the CLIs' ``--force``).
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -53,3 +54,23 @@ def write_atomic(path: str | os.PathLike, data: bytes | str, *, overwrite: bool 
             os.unlink(tmp)
         raise
     return target
+
+
+def replace_path(new: Path, target: Path) -> None:
+    """Move the finished ``new`` (file or folder) to ``target``, replacing what is there.
+
+    A folder cannot be renamed over a non-empty folder: an existing one is moved aside first,
+    put back if the move fails (never lost), and deleted once ``new`` is in place.
+    """
+    if not target.is_dir() or target.is_symlink():
+        os.replace(new, target)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+    os.rmdir(old)
+    os.replace(target, old)
+    try:
+        os.replace(new, target)
+    except BaseException:
+        os.replace(old, target)
+        raise
+    shutil.rmtree(old, ignore_errors=True)

@@ -31,6 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from tire_model_ros.atomic import replace_path
+
 # The channels the diagnosis compares, in report order; each is plotted over its own slip.
 CHANNELS: tuple[str, ...] = ("Fx", "Fy", "Mz")
 SLIP_OF_CHANNEL: dict[str, tuple[str, str, float]] = {
@@ -480,26 +482,6 @@ def _check_target(out: Path, overwrite: bool) -> None:
         )
 
 
-def _move_into_place(tmp: Path, out: Path) -> None:
-    """Rename the finished temp dir to ``out``; an existing ``out`` is moved aside first."""
-    old: Path | None = None
-    if out.is_dir():
-        if any(out.iterdir()):
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-            os.rmdir(old)
-            os.replace(out, old)
-        else:
-            os.rmdir(out)
-    try:
-        os.replace(tmp, out)
-    except OSError:
-        if old is not None:  # put the old report back rather than lose it
-            os.replace(old, out)
-        raise
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
-
-
 def write_report(
     diag: Any,
     wheels: Any,
@@ -551,7 +533,7 @@ def write_report(
             )
         os.chmod(tmp, 0o755)  # mkdtemp makes 0700; a report is for reading
         _check_target(out, overwrite)  # again: someone may have written there meanwhile
-        _move_into_place(tmp, out)
+        replace_path(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         plt.close("all")

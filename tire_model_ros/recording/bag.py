@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tire_model_ros.atomic import replace_path
 from tire_model_ros.recording import cdr, mcap_index
 from tire_model_ros.recording.series import WheelSeries
 
@@ -606,7 +607,7 @@ class BagWriter:
             self.writer.close()
             ext = ".db3" if self.storage == "sqlite3" else ".mcap"
             new = self.bag / f"{self.bag.name}{ext}" if self.lone else self.bag
-            _replace(new, self.path)
+            replace_path(new, self.path)
         finally:
             shutil.rmtree(self.tmpdir, ignore_errors=True)
 
@@ -742,7 +743,7 @@ def _write_fast_mcap(path: Path, names, types, stamps_of, rows_of, order, overwr
         if not lone:
             text = yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False)
             (new / "metadata.yaml").write_text(text)
-        _replace(new, path)
+        replace_path(new, path)
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
 
@@ -806,17 +807,3 @@ def write_recording(
             keep = decimate_mask(t_ns, rates.get(channel))
             topics[f"{w.prefix}/{channel}"] = (msgtype, t_ns[keep], values[keep])
     write_topics(path, topics, overwrite=overwrite, storage=storage)
-
-
-def _replace(new: Path, target: Path) -> None:
-    """Move ``new`` to ``target``, replacing it; a folder target is swapped, then deleted."""
-    if target.is_dir() and not target.is_symlink():
-        old = new.parent / (target.name + ".old")
-        os.replace(target, old)
-        try:
-            os.replace(new, target)
-        except BaseException:
-            os.replace(old, target)  # put the original back before the temp folder goes
-            raise
-    else:
-        os.replace(new, target)
