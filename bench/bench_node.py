@@ -11,11 +11,20 @@ Per step: slips sent and forces received, drops, latency from slip stamp (wall c
 publish) to receipt (p50/p99), and the server's CPU time per slip (its load included), which
 other load on the machine does not inflate as much as latency.
 
+Scheduling, the same for all three processes (driver, node, echo node): ``--rt-priority N``
+(default 10; 0 = normal scheduling) puts every thread on SCHED_FIFO N: the node through its
+``rt_priority`` parameter, the echo node and the driver through the same
+``tire_model_ros.node.realtime.apply``; ``--server-cpus``/``--driver-cpus`` pin them. Each
+process freezes its start-up heap (the node does so itself), so that no full garbage
+collection of ~130k start-up objects (~30 ms) lands in a measurement. On a machine shared with
+other work, normal scheduling leaves the tail to whoever else is running (p99 1-30 ms here).
+
 The highest rate "sustained" is the highest step with zero drops whose publish rate reached
 95 % of the target. Target: 4 wheels at 1 kHz each, zero drops, p99 <= 2 ms, latency within
 1.5x the echo node's.
 
     .venv/bin/python bench/bench_node.py [--rates 250,500,1000,1500,2000] [--seconds 2]
+        [--rt-priority 10] [--server-cpus 1] [--driver-cpus 0]
 """
 
 from __future__ import annotations
@@ -35,6 +44,8 @@ import contextlib
 
 from ros_util import NodeProcess, claim_domain_id, node_command, ros_env, wait_for
 
+from tire_model_ros.node import realtime
+
 CAR = ("/car/fl", "/car/fr", "/car/rl", "/car/rr")
 _STAMP = struct.Struct("<iI")
 
@@ -46,8 +57,11 @@ def cpu_seconds(pid: int) -> float:
 
 
 # ------------------------------------------------------------------ the echo server
-def echo_main(prefixes: list[str]) -> int:
-    """Bare rclpy node: each slip -> one WrenchStamped with the same header; load ignored."""
+def echo_main(prefixes: list[str], rt_priority: int = 0, cpus: list[int] | None = None) -> int:
+    """Bare rclpy node: each slip -> one WrenchStamped with the same header; load ignored.
+
+    Scheduling and the frozen heap as the node's ``tune_process`` does them.
+    """
     import rclpy
     from geometry_msgs.msg import Vector3Stamped, WrenchStamped
     from rclpy.executors import ExternalShutdownException
@@ -71,6 +85,9 @@ def echo_main(prefixes: list[str]) -> int:
         node.create_subscription(WrenchStamped, f"{prefix}/load", lambda m: None, qos)
     ex = EventsExecutor()
     ex.add_node(node)
+    for problem in realtime.apply(rt_priority, cpus or []):
+        print(f"echo_node scheduling: {problem}", file=sys.stderr)
+    realtime.freeze_heap()
     with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
         spin(ex)
     node.destroy_node()
@@ -90,7 +107,13 @@ def _qos(depth: int = 100):
 class Driver:
     """Publishers and receivers for the wheels, in this process."""
 
-    def __init__(self, domain_id: int, prefixes: list[str]) -> None:
+    def __init__(
+        self,
+        domain_id: int,
+        prefixes: list[str],
+        rt_priority: int = 0,
+        cpus: list[int] | None = None,
+    ) -> None:
         import rclpy
         from geometry_msgs.msg import Vector3Stamped, WrenchStamped
         from rclpy.experimental import EventsExecutor
@@ -113,6 +136,9 @@ class Driver:
         self._stop = False
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
+        for problem in realtime.apply(rt_priority, cpus or []):
+            print(f"driver scheduling: {problem}", file=sys.stderr)
+        realtime.freeze_heap()
 
     def _cb(self, prefix: str):
         box = self.recv[prefix]
@@ -190,20 +216,28 @@ class Driver:
         self.context.try_shutdown()
 
 
-def server_command(kind: str, prefixes: list[str], tir: str | None) -> list[str]:
+def server_command(
+    kind: str, prefixes: list[str], tir: str | None, rt_priority: int, cpus: list[int]
+) -> list[str]:
     wheels = "[" + ",".join(prefixes) + "]"
     if kind == "echo":
-        return [sys.executable, __file__, "--echo", *prefixes]
+        sched = ["--rt-priority", str(rt_priority)]
+        sched += ["--server-cpus", ",".join(map(str, cpus))] if cpus else []
+        return [sys.executable, __file__, *sched, "--echo", *prefixes]
     args = ["--ros-args", "-p", f"wheels:={wheels}", "-p", "timeout.load:=0.0"]
+    args += ["-p", f"rt_priority:={rt_priority}"]
+    if cpus:
+        args += ["-p", f"cpus:=[{','.join(map(str, cpus))}]"]
     if tir:
         args += ["-p", f"tir_file:={tir}"]
     return [*node_command(), *args]
 
 
-def bench(kind: str, prefixes: list[str], rates: list[float], seconds: float, tir) -> list[dict]:
+def bench(kind: str, prefixes: list[str], rates: list[float], args) -> list[dict]:
     did = claim_domain_id()
-    driver = Driver(did, prefixes)
-    proc = NodeProcess(server_command(kind, prefixes, tir), ros_env(did))
+    driver = Driver(did, prefixes, args.rt_priority, args.driver_cpus)
+    cmd = server_command(kind, prefixes, args.tir, args.rt_priority, args.server_cpus)
+    proc = NodeProcess(cmd, ros_env(did))
     rows = []
     try:
 
@@ -215,7 +249,7 @@ def bench(kind: str, prefixes: list[str], rates: list[float], seconds: float, ti
         driver.run_step(100.0, 1.0)  # warm-up
         for rate in rates:
             cpu0 = cpu_seconds(proc.proc.pid)
-            row = driver.run_step(rate, seconds)
+            row = driver.run_step(rate, args.seconds)
             cpu = cpu_seconds(proc.proc.pid) - cpu0
             # server CPU per slip (its load message included), robust to other machine load
             row.update(server=kind, wheels=len(prefixes), cpu_us=1e6 * cpu / max(row["sent"], 1))
@@ -244,6 +278,10 @@ def _fmt(r: dict) -> str:
     )
 
 
+def _cpus(text: str) -> list[int]:
+    return [int(c) for c in text.split(",") if c]
+
+
 def sustained(rows: list[dict]) -> dict | None:
     ok = [r for r in rows if r["drops"] == 0 and r["achieved"] >= 0.95 * r["rate"]]
     return max(ok, key=lambda r: r["rate"]) if ok else None
@@ -256,17 +294,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tir", default=None, help="tir_file for the node (default: its default)")
     ap.add_argument("--wheels", default="1,4")
     ap.add_argument("--servers", default="echo,node")
+    ap.add_argument(
+        "--rt-priority", type=int, default=10, help="SCHED_FIFO priority of all (0 = normal)"
+    )
+    ap.add_argument("--server-cpus", type=_cpus, default=[], help="e.g. 1 (default: all)")
+    ap.add_argument("--driver-cpus", type=_cpus, default=[], help="e.g. 0 (default: all)")
     ap.add_argument("--echo", nargs="*", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.echo is not None:
-        return echo_main(args.echo)
+        return echo_main(args.echo, args.rt_priority, args.server_cpus)
     rates = [float(x) for x in args.rates.split(",")]
     results: dict[tuple[str, int], list[dict]] = {}
+    print(
+        f"scheduling: SCHED_FIFO {args.rt_priority or 'off'} for driver, node and echo; "
+        f"cpus server {args.server_cpus or 'all'}, driver {args.driver_cpus or 'all'}"
+    )
     print(HEADER)
     for n in (int(x) for x in args.wheels.split(",")):
         prefixes = ["/wheel"] if n == 1 else list(CAR[:n])
         for kind in args.servers.split(","):
-            results[(kind, n)] = bench(kind, prefixes, rates, args.seconds, args.tir)
+            results[(kind, n)] = bench(kind, prefixes, rates, args)
     print("\nSummary: highest rate per wheel with zero drops (and its latency)")
     print(HEADER)
     for rows in results.values():

@@ -36,6 +36,8 @@ GLOBAL_PARAMS = (
     "timeout",
     "diagnostics_period",
     "qos_depth",
+    "rt_priority",
+    "cpus",
 )
 INPUTS = ("load", "pressure", "temperature", "velocity")
 #: Default staleness timeouts [s]; 0 disables the check (value held for ever).

@@ -19,6 +19,9 @@ missing_load : string        "nominal" (FNOMIN, default) or "skip" when load is 
 timeout.{load,pressure,temperature,velocity} : double  staleness [s]; 0 = never stale
 diagnostics_period : double  [s] period of /diagnostics (read-only), default 1.0
 qos_depth : int              depth of the reliable input/output queues (read-only), default 100
+rt_priority : int            SCHED_FIFO priority 1..99 of all the node's threads (read-only);
+                             default 0 = normal scheduling (see :mod:`.realtime`)
+cpus : int[]                 CPU affinity of the node's threads (read-only); default unset = all
 
 Live changes: a coefficient change builds a new immutable model with ``with_params`` inside the
 on-set callback and swaps one reference, so every message is computed with the old or the new
@@ -33,6 +36,9 @@ the file's values).
 
 Executor: rclpy's EventsExecutor (2-3x the message rate of SingleThreadedExecutor here), driven
 by ``spin_once`` so that SIGINT/SIGTERM end the process cleanly with exit code 0.
+
+Latency: once started, ``main`` freezes the start-up heap (a full garbage collection of it
+would stall a message by ~30 ms) and applies ``rt_priority`` and ``cpus`` to every thread.
 """
 
 from __future__ import annotations
@@ -51,6 +57,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistStamped, Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import (
     FloatingPointRange,
+    IntegerRange,
     ParameterDescriptor,
     ParameterType,
     SetParametersResult,
@@ -64,7 +71,7 @@ from sensor_msgs.msg import FluidPressure, Temperature
 from std_srvs.srv import Trigger
 
 from tire_model_ros.model import TireModel
-from tire_model_ros.node import cdr_fast
+from tire_model_ros.node import cdr_fast, realtime
 from tire_model_ros.node import params as pn
 from tire_model_ros.node.wheel import Nominal, Throttle, WheelState
 
@@ -192,6 +199,21 @@ class TireModelNode(Node):
         )
         self.declare_parameter(
             "qos_depth", 100, _descriptor("depth of the reliable topic queues", read_only=True)
+        )
+        self.declare_parameter(
+            "rt_priority",
+            0,
+            _descriptor(
+                "SCHED_FIFO priority of the node's threads (1..99, needs root/CAP_SYS_NICE); "
+                "0 = normal scheduling",
+                read_only=True,
+                integer_range=[IntegerRange(from_value=0, to_value=realtime.MAX_RT_PRIORITY)],
+            ),
+        )
+        self.declare_parameter(
+            "cpus",
+            Parameter.Type.INTEGER_ARRAY,
+            _descriptor("CPUs the node's threads may run on; unset = all", read_only=True),
         )
 
     def _declare_coefficients(self, slot: str, model: TireModel, overrides: bool) -> dict:
@@ -533,6 +555,21 @@ def spin(executor) -> None:
         executor.spin_once(timeout_sec=0.5)
 
 
+def tune_process(node: Node) -> None:
+    """Scheduling from the node's ``rt_priority``/``cpus``, then freeze the start-up heap."""
+    priority = int(node.get_parameter("rt_priority").value)
+    try:
+        cpus = list(node.get_parameter("cpus").value)
+    except rclpy.exceptions.ParameterUninitializedException:
+        cpus = []  # unset: all CPUs
+    problems = realtime.apply(priority, cpus)
+    for problem in problems:
+        node.get_logger().warning(f"scheduling: {problem}")
+    if (priority or cpus) and not problems:
+        node.get_logger().info(f"scheduling: SCHED_FIFO {priority or 'off'}, cpus {cpus or 'all'}")
+    realtime.freeze_heap()
+
+
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
     node = None
@@ -541,6 +578,7 @@ def main(args: list[str] | None = None) -> int:
         node = TireModelNode()
         executor = make_executor()
         executor.add_node(node)
+        tune_process(node)
         spin(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
