@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import re
 import shutil
 import signal
@@ -22,6 +23,7 @@ from ros_util import NodeProcess, RosClient, node_command, ros_env, wait_for
 
 from tire_model_ros.model import TireModel
 from tire_model_ros.node import params as pn
+from tire_model_ros.node import realtime
 from tire_model_ros.node.wheel import Nominal, WheelState
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
@@ -54,6 +56,14 @@ def test_wheel_key_mapping_and_classification():
     assert pn.coefficient_range("FNOMIN")[0] == 0.0 and pn.coefficient_range("FNOMIN")[2]
     with pytest.raises(ValueError, match="PDY1"):
         pn.coefficient_value("car.rl.PDY1", math.nan)
+
+
+def test_realtime_refuses_what_it_cannot_apply():
+    before = os.sched_getscheduler(0), os.sched_getaffinity(0)
+    assert "outside 0..99" in realtime.apply(100)[0]
+    assert "not all available" in realtime.apply(0, [max(os.sched_getaffinity(0)) + 1])[0]
+    assert realtime.apply(0, []) == []
+    assert (os.sched_getscheduler(0), os.sched_getaffinity(0)) == before
 
 
 def test_wheel_state_fallbacks_and_rejections():
@@ -598,6 +608,44 @@ def test_bad_start_exits_1_with_message(client, tmp_path):
     wait_for(lambda: not proc.alive(), 30, "the node to exit")
     rc, log = proc.stop()
     assert rc == 1 and "nope.tir" in log and "Traceback" not in log, log
+
+
+def thread_scheduling(pid: int) -> set[tuple[int, int, str]]:
+    """(policy, rt priority, allowed CPUs) of every thread of ``pid`` (Linux /proc)."""
+    out = set()
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        cpus = re.search(r"Cpus_allowed_list:\s*(\S+)", (task / "status").read_text()).group(1)
+        out.add((int(fields[38]), int(fields[37]), cpus))  # stat fields 41 policy, 40 rt_priority
+    return out
+
+
+def test_rt_priority_and_cpus_apply_to_every_thread(client):
+    proc = start_node(
+        ["-r", "__node:=tire_rt", "-p", "wheels:=[/rtw]", "-p", "rt_priority:=3",
+         "-p", "cpus:=[0]", "-p", "timeout.load:=0.0"],
+        client,
+    )  # fmt: skip
+    try:
+        wheel = Wheel(client, "/rtw")
+        client.wait_matched(wheel.pubs(), 90, proc)
+        wheel.settle(TireModel.from_file(DEFAULT_TIR), INPUTS1)
+        sched = thread_scheduling(proc.proc.pid)
+        if "scheduling: SCHED_FIFO" in proc.log():  # applied: all threads, DDS ones included
+            assert sched == {(1, 3, "0")}, sched
+        else:  # no permission here: a warning, normal scheduling, outputs as ever
+            assert "scheduling:" in proc.log() and all(p == 0 for p, _, _ in sched), proc.log()
+        check(wheel, TireModel.from_file(DEFAULT_TIR), INPUTS1, random_slips(7, 10))
+    finally:
+        rc, log = proc.stop(signal.SIGINT, timeout=15)
+    assert rc == 0 and "Traceback" not in log, log
+
+
+def test_rt_priority_out_of_range_refused_at_start(client):
+    proc = start_node(["-r", "__node:=tire_rt_bad", "-p", "rt_priority:=100"], client)
+    wait_for(lambda: not proc.alive(), 30, "the node to exit")
+    rc, log = proc.stop()
+    assert rc == 1 and "rt_priority" in log and "Traceback" not in log, log
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
