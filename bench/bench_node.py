@@ -23,7 +23,7 @@ The highest rate "sustained" is the highest step with zero drops whose publish r
 95 % of the target. Target: 4 wheels at 1 kHz each, zero drops, p99 <= 2 ms, latency within
 1.5x the echo node's.
 
-    .venv/bin/python bench/bench_node.py [--rates 250,500,1000,1500,2000] [--seconds 2]
+    .venv/bin/python bench/bench_node.py [--rates 250,500,1000,2000,4000] [--seconds 2]
         [--rt-priority 10] [--server-cpus 1] [--driver-cpus 0]
 """
 
@@ -289,7 +289,7 @@ def sustained(rows: list[dict]) -> dict | None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--rates", default="250,500,1000,1500,2000,3000")
+    ap.add_argument("--rates", default="250,500,1000,2000,3000,4000,6000,8000,12000")
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--tir", default=None, help="tir_file for the node (default: its default)")
     ap.add_argument("--wheels", default="1,4")
