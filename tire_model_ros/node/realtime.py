@@ -9,7 +9,7 @@ not by its own work (``bench/bench_node.py``). Three settings remove what is not
   processes; needs root or CAP_SYS_NICE (else a warning and normal scheduling).
 - ``cpus``: CPU affinity of every thread (e.g. a core kept free for the node).
 - ``freeze_heap``: after start-up the heap holds ~130k objects (rclpy, numba, the model); one
-  full collection of them takes ~30 ms. ``gc.freeze`` moves them out of the collector's view,
+  full collection of them takes 16-54 ms. ``gc.freeze`` moves them out of the collector's view,
   so later collections only scan what is new (a few µs).
 
 Threads created afterwards inherit policy and affinity from the thread that creates them.

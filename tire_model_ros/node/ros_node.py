@@ -38,7 +38,7 @@ Executor: rclpy's EventsExecutor (2-3x the message rate of SingleThreadedExecuto
 by ``spin_once`` so that SIGINT/SIGTERM end the process cleanly with exit code 0.
 
 Latency: once started, ``main`` freezes the start-up heap (a full garbage collection of it
-would stall a message by ~30 ms) and applies ``rt_priority`` and ``cpus`` to every thread.
+would stall messages by 16-54 ms) and applies ``rt_priority`` and ``cpus`` to every thread.
 """
 
 from __future__ import annotations
