@@ -21,15 +21,18 @@ machine shared with other work, normal scheduling leaves the tail to whoever els
 (p99 1-30 ms here).
 
 The highest rate "sustained" is the highest step reached from the lowest rate up with zero
-drops at every step and a publish rate of at least 95 % of the target. What is left of the
-tail with SCHED_FIFO is not the node's: the echo node has it too, and a scheduler trace
-(perf sched) puts the ms-long gaps in the driver's own DDS receive thread, on a VM whose
-vCPUs lose time to the host (steal in /proc/stat).
+drops at every step and a publish rate of at least 95 % of the target.
+
+Queue depth (``--depth``, default 100 = the node's ``qos_depth``) is the same for all three.
+The driver used to keep 1000: with reliable KEEP_LAST queues that deep, Fast DDS stalls the
+driver for 1-9 ms every few hundred ms (a perf sched trace shows its DDS receive thread busy
+while the publishing thread waits on it), the same for node and echo; at depth 100 or 300
+those stalls are gone.
 
 Target: 4 wheels at 1 kHz each, zero drops, p99 <= 2 ms, latency within 1.5x the echo node's.
 
     .venv/bin/python bench/bench_node.py [--rates 250,500,1000,2000,4000] [--seconds 2]
-        [--rt-priority 10] [--server-cpus 1] [--driver-cpus 0]
+        [--rt-priority 10] [--server-cpus 1] [--driver-cpus 0] [--depth 100]
 """
 
 from __future__ import annotations
@@ -62,7 +65,9 @@ def cpu_seconds(pid: int) -> float:
 
 
 # ------------------------------------------------------------------ the echo server
-def echo_main(prefixes: list[str], rt_priority: int = 0, cpus: list[int] | None = None) -> int:
+def echo_main(
+    prefixes: list[str], rt_priority: int = 0, cpus: list[int] | None = None, depth: int = 100
+) -> int:
     """Bare rclpy node: each slip -> one WrenchStamped with the same header; load ignored.
 
     Scheduling and the frozen heap as the node's ``tune_process`` does them.
@@ -76,7 +81,7 @@ def echo_main(prefixes: list[str], rt_priority: int = 0, cpus: list[int] | None 
 
     rclpy.init()
     node = rclpy.create_node("echo_node")
-    qos = _qos()
+    qos = _qos(depth)
     for prefix in prefixes:
         pub = node.create_publisher(WrenchStamped, f"{prefix}/forces", qos)
         out = WrenchStamped()
@@ -118,6 +123,7 @@ class Driver:
         prefixes: list[str],
         rt_priority: int = 0,
         cpus: list[int] | None = None,
+        depth: int = 100,
     ) -> None:
         import rclpy
         from geometry_msgs.msg import Vector3Stamped, WrenchStamped
@@ -130,7 +136,7 @@ class Driver:
         self.lock = threading.Lock()
         self.recv: dict[str, list[tuple[int, float]]] = {p: [] for p in prefixes}
         self.slip_pubs, self.load_pubs = [], []
-        qos = _qos(1000)
+        qos = _qos(depth)
         for p in prefixes:
             self.slip_pubs.append(self.node.create_publisher(Vector3Stamped, f"{p}/slip", qos))
             self.load_pubs.append(self.node.create_publisher(WrenchStamped, f"{p}/load", qos))
@@ -221,27 +227,28 @@ class Driver:
         self.context.try_shutdown()
 
 
-def server_command(
-    kind: str, prefixes: list[str], tir: str | None, rt_priority: int, cpus: list[int]
-) -> list[str]:
-    wheels = "[" + ",".join(prefixes) + "]"
+def server_command(kind: str, prefixes: list[str], args: argparse.Namespace) -> list[str]:
+    """The echo node or tire_model_node with the bench's scheduling and queue depth."""
+    cpus = args.server_cpus
     if kind == "echo":
-        sched = ["--rt-priority", str(rt_priority)]
+        sched = ["--rt-priority", str(args.rt_priority), "--depth", str(args.depth)]
         sched += ["--server-cpus", ",".join(map(str, cpus))] if cpus else []
         return [sys.executable, __file__, *sched, "--echo", *prefixes]
-    args = ["--ros-args", "-p", f"wheels:={wheels}", "-p", "timeout.load:=0.0"]
-    args += ["-p", f"rt_priority:={rt_priority}"]
+    ros = ["--ros-args", "-p", f"wheels:=[{','.join(prefixes)}]", "-p", "timeout.load:=0.0"]
+    ros += ["-p", f"rt_priority:={args.rt_priority}", "-p", f"qos_depth:={args.depth}"]
     if cpus:
-        args += ["-p", f"cpus:=[{','.join(map(str, cpus))}]"]
-    if tir:
-        args += ["-p", f"tir_file:={tir}"]
-    return [*node_command(), *args]
+        ros += ["-p", f"cpus:=[{','.join(map(str, cpus))}]"]
+    if args.tir:
+        ros += ["-p", f"tir_file:={args.tir}"]
+    return [*node_command(), *ros]
 
 
-def bench(kind: str, prefixes: list[str], rates: list[float], args) -> list[dict]:
+def bench(
+    kind: str, prefixes: list[str], rates: list[float], args: argparse.Namespace
+) -> list[dict]:
     did = claim_domain_id()
-    driver = Driver(did, prefixes, args.rt_priority, args.driver_cpus)
-    cmd = server_command(kind, prefixes, args.tir, args.rt_priority, args.server_cpus)
+    driver = Driver(did, prefixes, args.rt_priority, args.driver_cpus, args.depth)
+    cmd = server_command(kind, prefixes, args)
     proc = NodeProcess(cmd, ros_env(did))
     rows = []
     try:
@@ -309,15 +316,19 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--server-cpus", type=_cpus, default=[], help="e.g. 1 (default: all)")
     ap.add_argument("--driver-cpus", type=_cpus, default=[], help="e.g. 0 (default: all)")
+    ap.add_argument(
+        "--depth", type=int, default=100, help="reliable queue depth of driver, node and echo"
+    )
     ap.add_argument("--echo", nargs="*", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.echo is not None:
-        return echo_main(args.echo, args.rt_priority, args.server_cpus)
+        return echo_main(args.echo, args.rt_priority, args.server_cpus, args.depth)
     rates = [float(x) for x in args.rates.split(",")]
     results: dict[tuple[str, int], list[dict]] = {}
     print(
         f"scheduling: SCHED_FIFO {args.rt_priority or 'off'} for driver, node and echo; "
-        f"cpus server {args.server_cpus or 'all'}, driver {args.driver_cpus or 'all'}"
+        f"cpus server {args.server_cpus or 'all'}, driver {args.driver_cpus or 'all'}; "
+        f"queue depth {args.depth}"
     )
     print(HEADER)
     for n in (int(x) for x in args.wheels.split(",")):
