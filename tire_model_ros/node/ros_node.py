@@ -18,7 +18,8 @@ ambient_pressure : double    [Pa], default 101325
 missing_load : string        "nominal" (FNOMIN, default) or "skip" when load is missing/stale
 timeout.{load,pressure,temperature,velocity} : double  staleness [s]; 0 = never stale
 diagnostics_period : double  [s] period of /diagnostics (read-only), default 1.0
-qos_depth : int              depth of the reliable input/output queues (read-only), default 100
+qos_depth : int              depth of the reliable input/output queues (read-only), default 100;
+                             at 1000, Fast DDS stalls for ms every few hundred ms (bench_node)
 rt_priority : int            SCHED_FIFO priority 1..99 of all the node's threads (read-only);
                              default 0 = normal scheduling (see :mod:`.realtime`)
 cpus : int[]                 CPU affinity of the node's threads (read-only); default unset = all
