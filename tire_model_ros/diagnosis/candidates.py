@@ -481,6 +481,57 @@ class Speed(Component):
         return 1.0 / np.maximum(1.0 + float(x[0]) * w.Vs / ctx.V0, 0.05)
 
 
+class SpeedTable(Component):
+    """Friction against sliding speed as a table: linear in ln Vs between fixed knots.
+
+    A generic curve (no law assumed; it can rise, peak and fall), for friction that is not
+    monotone in Vs. The knots are log-spaced over the sliding speeds where the tyre slides
+    (5th to 99th percentile of Vs above 0.05 m/s); the one nearest the median is held at 1
+    (the scaling factors carry the level), so the fitted values are relative to it.
+    """
+
+    KNOTS = 5
+
+    def __init__(self, ctx: Context):
+        Vs = np.concatenate([w.Vs for w in ctx.wheels])
+        Vs = Vs[Vs > 0.05]
+        lo, hi = (np.percentile(Vs, [5, 99]) if len(Vs) > 10 else (0.1, 3.0))
+        self.lnV = np.linspace(np.log(lo), np.log(max(hi, 2.0 * lo)), self.KNOTS)
+        self.ref = int(np.argmin(np.abs(self.lnV - np.log(np.median(Vs) if len(Vs) else 1.0))))
+        names = [f"mu_at_{np.exp(v):.2g}_mps" for i, v in enumerate(self.lnV) if i != self.ref]
+        n = len(names)
+        super().__init__(
+            "speed", "friction table in ln Vs (piecewise linear)", names, [1.0] * n,
+            [0.3] * n, [2.0] * n, [0.02] * n,
+        )
+
+    def mu_scale(self, x, ctx, w):
+        knots = np.insert(np.asarray(x, float), self.ref, 1.0)
+        return np.interp(np.log(np.maximum(w.Vs, 1e-4)), self.lnV, knots)
+
+
+class FrictionStep(Component):
+    """A step in friction at a fitted time (belt or road change between runs).
+
+    mu scale = 1 - d H(t - t_c), with H a logistic of width STEP_WIDTH_S so that the change
+    point t_c is fitted by least squares (started at several times of the session).
+    """
+
+    STEP_WIDTH_S = 1.0
+
+    def __init__(self, ctx: Context):
+        super().__init__(
+            "drift", "friction step at a fitted time", ["t_step_s", "step_mu_loss"],
+            [0.5 * ctx.t_end, 0.0], [0.0, -0.6], [ctx.t_end, 0.6],
+            [0.05 * ctx.t_end, 0.02],
+        )
+        self.starts = [{"t_step_s": f * ctx.t_end} for f in (0.15, 0.3, 0.7, 0.85)]
+
+    def mu_scale(self, x, ctx, w):
+        z = np.clip((w.t - float(x[0])) / self.STEP_WIDTH_S, -50.0, 50.0)
+        return 1.0 - float(x[1]) / (1.0 + np.exp(-z))
+
+
 class Wear(Component):
     """Never-recovering drift: friction scale linear in cumulative frictional work (wear)."""
 

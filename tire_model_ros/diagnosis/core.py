@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -71,10 +72,51 @@ class Diagnosis:
     heldout_mask: dict[str, np.ndarray]
     sweeps: dict[str, list[np.ndarray]]
     details: dict = field(default_factory=dict)  # selection log, timings (for reports)
+    # (context, components, parameters) of the baseline and of the improved model
+    models: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         """The INTERFACE.md diagnosis object."""
         return {"effects": [e.to_json() for e in self.effects], "fit": self.fit}
+
+    def score_reference(self, wheels: Sequence) -> dict:
+        """Held-out RMSE of the baseline and improved models against a twin recording.
+
+        ``wheels`` is a second recording of the same session, sample for sample (for the
+        virtual rig: its noise-free twin, true inputs and true forces). Both fitted models are
+        replayed on its inputs (hidden states driven by its own forces) and compared with its
+        forces on the samples held out here: the model error without the sensor noise.
+
+        Returns
+        -------
+        {"heldout_baseline": {ch: {"rmse": N}}, "heldout_improved": {...}} as in ``fit``.
+
+        Raises
+        ------
+        ValueError
+            A wheel is missing or its samples do not match the diagnosed recording's.
+        """
+        ctx = self.models["ctx"]
+        by_prefix = {s.prefix: s for s in wheels}
+        ws = []
+        for w in ctx.wheels:
+            s = by_prefix.get(w.prefix)
+            if s is None or len(s.t) != w.n or not np.allclose(s.t - s.t[0], w.t, atol=1e-6):
+                raise ValueError(f"{w.prefix}: reference recording does not match the samples")
+            r = _prepare_wheel(s, ctx.model, np.random.default_rng(0))
+            r.fold, r.scramble = w.fold, w.scramble
+            ws.append(r)
+        ref = dataclasses.replace(ctx, wheels=ws)
+        preds = {}
+        for wi, w in enumerate(ws):
+            rows = np.arange(w.n)
+            preds[w.prefix] = {}
+            for kind in ("baseline", "improved"):
+                comps, x = self.models[kind]
+                out = cd.predict(comps, x, ref, wi, rows)
+                preds[w.prefix].update({f"{kind}_{ch}": out[ch] for ch in w.meas})
+        fit = _fit_json(ref, ws, preds)
+        return {k: fit[k] for k in ("heldout_baseline", "heldout_improved")}
 
 
 # --- preparation ------------------------------------------------------------------------------
@@ -340,8 +382,8 @@ def _candidates(ctx: cd.Context) -> list[cd.Component]:
     if both.mean() > 0.05 and ctx.informative["x"] and ctx.informative["y"]:
         out.append(cd.combined_component(ctx))
     # Sliding speed varies with slip even at a constant wheel speed: speed always applies.
-    out.append(cd.Speed(ctx))
-    out += [cd.Wear(ctx, "work"), cd.Wear(ctx, "time")]
+    out += [cd.Speed(ctx), cd.SpeedTable(ctx)]
+    out += [cd.Wear(ctx, "work"), cd.Wear(ctx, "time"), cd.FrictionStep(ctx)]
     return [c for c in out if c.n > 0]
 
 
@@ -640,6 +682,7 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
             "summaries": summaries,
             "components": [c.label for c in comps],
         },
+        models={"ctx": ctx, "baseline": (base, base_fit.x), "improved": (comps, final.x)},
     )
 
 
