@@ -7,7 +7,8 @@ one or more of four places:
   combined-slip coefficients) -- global for the session;
 - ``inputs``: transformed model inputs (a hidden temperature or gas-pressure state, lagged or
   delayed slip);
-- ``mu_scale``: a per-sample friction scale (wear, speed-dependent friction);
+- ``mu_scale``: a per-sample friction scale (wear, speed-dependent friction, a friction
+  step), applied by the similarity method (``_evaluate_similarity``);
 - ``output``: additive force offsets.
 
 The predictor evaluates the model once per wheel on the transformed inputs. Every component's
@@ -105,9 +106,6 @@ class Component:
     def output(self, x: np.ndarray, ctx: Context, w: Wheel, wi: int, out: dict, rows) -> None:
         return None
 
-    def uses_T(self) -> bool:
-        return False
-
     @property
     def n(self) -> int:
         return len(self.pnames)
@@ -166,9 +164,6 @@ class ThermalHidden(Component):
         if mode != "memoryless":  # the time constant is the non-convex direction
             self.starts = [{"tau_T_s": 2.0}, {"tau_T_s": 15.0}]
 
-    def uses_T(self) -> bool:
-        return True
-
     def _tau(self, x) -> float:
         return 1e-3 if self.mode == "memoryless" else float(x[0])
 
@@ -226,9 +221,6 @@ class ThermalRecorded(Component):
             [3.0] * n,
             [0.1] * n,
         )
-
-    def uses_T(self) -> bool:
-        return True
 
     def coef(self, x, ctx):
         return {k: ctx.base[k] + float(v) for k, v in zip(self.pnames, x, strict=True)}
@@ -560,23 +552,6 @@ def split_x(components: list[Component], x: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def _mu_levels(
-    s: np.ndarray, max_levels: int = 4
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Grid levels bracketing each sample's scale, the interpolation weight, the step.
-
-    The step is a power-of-two multiple of 0.01 so that the grid does not move when the
-    parameters move a little (the prediction stays smooth in them).
-    """
-    step = 0.01
-    while (np.max(s) - np.min(s)) / step > max_levels:
-        step *= 2.0
-    q = s / step
-    lo = np.floor(q)
-    f = q - lo
-    return lo.astype(np.int64), lo.astype(np.int64) + 1, f, step
-
-
 def predict(
     components: list[Component], x: np.ndarray, ctx: Context, wi: int, rows: np.ndarray
 ) -> dict[str, np.ndarray]:
@@ -594,20 +569,28 @@ def predict(
         m = c.mu_scale(xc, ctx, w)
         if m is not None:
             s = m if s is None else s * m
-    T_used = any(c.uses_T() for c in components) or w.inputs["T"] is not None
     args = {
         k: (None if inp[k] is None else inp[k][rows])
         for k in ("Fz", "kappa", "alpha", "gamma", "V", "p", "T")
     }
     if s is None:
         out = _evaluate(ctx.model, upd, args)
-    elif not T_used:
-        out = _evaluate_mu_carrier(ctx, upd, args, s[rows])
     else:
-        out = _evaluate_mu_levels(ctx, upd, args, s[rows])
+        out = _evaluate_similarity(ctx.model, upd, args, s[rows])
     for c, xc in zip(components, xs, strict=True):
         c.output(xc, ctx, w, wi, out, rows)
     return out
+
+
+def _evaluate_similarity(model, upd: dict, a: dict, s: np.ndarray) -> dict[str, np.ndarray]:
+    """A per-sample friction scale s by the similarity method (Pacejka 2012 §4.3.2):
+    F = s F0(kappa / s, tan(alpha) / s), the slip stiffnesses kept."""
+    a = dict(a)
+    s = np.maximum(s, 0.05)
+    a["kappa"] = a["kappa"] / s
+    a["alpha"] = np.arctan(np.tan(a["alpha"]) / s)
+    out = _evaluate(model, upd, a)
+    return {ch: v * s for ch, v in out.items()}
 
 
 def _evaluate(model, upd: dict, a: dict) -> dict[str, np.ndarray]:
@@ -616,51 +599,3 @@ def _evaluate(model, upd: dict, a: dict) -> dict[str, np.ndarray]:
         a["Fz"], a["kappa"], a["alpha"], a["gamma"], Vx=a["V"], p=a["p"], T=a["T"], full=False
     )
     return {"Fx": np.asarray(o.Fx), "Fy": np.asarray(o.Fy), "Mz": np.asarray(o.Mz)}
-
-
-def _mu_axes(ctx: Context) -> tuple[bool, bool]:
-    """The friction coefficients a per-sample scale acts on: those the recording sweeps.
-
-    A direction that is not swept has no refitted scaling factor either; scaling its friction
-    would only move a channel the data cannot calibrate.
-    """
-    ax, ay = ctx.informative["x"], ctx.informative["y"]
-    return (ax, ay) if (ax or ay) else (True, True)
-
-
-def _evaluate_mu_carrier(ctx: Context, upd: dict, a: dict, s: np.ndarray):
-    """A per-sample friction scale through the model's own temperature input.
-
-    With T unused, setting TTX3 = TTY3 = 1 (other TT terms 0) and T = NOMTEMP * s makes
-    mux, muy scale by exactly s, sample by sample, in one evaluation.
-    """
-    u = dict(upd)
-    u.update({k: 0.0 for k in ("TTX1", "TTX2", "TTX4", "TTY1", "TTY2", "TTY4")})
-    ax, ay = _mu_axes(ctx)
-    u.update({"TTX3": 1.0 if ax else 0.0, "TTY3": 1.0 if ay else 0.0})
-    a = dict(a)
-    a["T"] = ctx.base["NOMTEMP"] * s
-    return _evaluate(ctx.model, u, a)
-
-
-def _evaluate_mu_levels(ctx: Context, upd: dict, a: dict, s: np.ndarray):
-    """A per-sample friction scale when T is in use: interpolate between scaled-model levels."""
-    lo, hi, f, step = _mu_levels(s)
-    out = {ch: np.zeros(len(s)) for ch in CHANNELS}
-    mux0 = upd.get("LMUX", ctx.base["LMUX"])
-    muy0 = upd.get("LMUY", ctx.base["LMUY"])
-    for lev in np.unique(np.concatenate([lo, hi])):
-        sel_lo = lo == lev
-        sel_hi = hi == lev
-        sel = sel_lo | sel_hi
-        u = dict(upd)
-        ax, ay = _mu_axes(ctx)
-        u.update(
-            {"LMUX": mux0 * (lev * step if ax else 1.0), "LMUY": muy0 * (lev * step if ay else 1.0)}
-        )
-        sub = {k: (None if v is None else v[sel]) for k, v in a.items()}
-        o = _evaluate(ctx.model, u, sub)
-        wgt = np.where(sel_lo[sel], 1.0 - f[sel], 0.0) + np.where(sel_hi[sel], f[sel], 0.0)
-        for ch in CHANNELS:
-            out[ch][sel] += wgt * o[ch]
-    return out
