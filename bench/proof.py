@@ -62,10 +62,10 @@ STRIP_TERMS: dict[str, tuple[str, ...]] = {
     "camber": (
         "PDX3", "PKY3", "PKY5", "PKY6", "PKY7", "PHY3", "PVY3", "PVY4", "PDY3", "PEY3", "PEY4",
         "PEY5", "PPY5", "QHZ3", "QHZ4", "QBZ4", "QBZ5", "QDZ3", "QDZ4", "QDZ8", "QDZ9", "QDZ10",
-        "QDZ11", "QEZ5", "RBX3", "RBY3", "RVY3",
+        "QDZ11", "QEZ5", "RBX3", "RBY4", "RVY3",
     ),
     # Combined slip: B of the weighting functions zero makes Gxa = Gyk = 1; DVyk zero: SVyk = 0.
-    "combined": ("RBX1", "RBX3", "RBY1", "RBY3", "RVY1", "RVY2", "RVY3"),
+    "combined": ("RBX1", "RBX3", "RBY1", "RBY4", "RVY1", "RVY2", "RVY3"),
     # Speed: the MF speed-dependence of friction and of Fy's speed term.
     "speed": ("LMUV",),
     # Pressure: every inflation-pressure term.

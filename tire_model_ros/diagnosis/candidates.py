@@ -254,7 +254,8 @@ class GasHidden(Component):
 class PressureRecorded(Component):
     """Recorded pressure: refit the file's main pressure terms."""
 
-    NAMES = ("PPX1", "PPX3", "PPY1", "PPY3")
+    # MF 6.1: Kxk (PPX1, PPX2), mux (PPX3, PPX4), Kya (PPY1, PPY2), muy (PPY3, PPY4)
+    NAMES = ("PPX1", "PPX2", "PPX3", "PPX4", "PPY1", "PPY2", "PPY3", "PPY4")
 
     def __init__(self, ctx: Context):
         names = [
@@ -505,11 +506,14 @@ class SpeedTable(Component):
 class FrictionStep(Component):
     """A step in friction at a fitted time (belt or road change between runs).
 
-    mu scale = 1 - d H(t - t_c), with H a logistic of width STEP_WIDTH_S so that the change
-    point t_c is fitted by least squares (started at several times of the session).
+    mu scale = 1 - d H(t - t_c), with H a logistic of width STEP_WIDTH_S. The cost is flat in
+    t_c across a pause (no force there) and has a local minimum at each one, so the fit
+    starts from every pause (at most MAX_STARTS of them, evenly picked), where a change
+    between runs happens, and keeps the best.
     """
 
     STEP_WIDTH_S = 1.0
+    MAX_STARTS = 24
 
     def __init__(self, ctx: Context):
         super().__init__(
@@ -517,7 +521,15 @@ class FrictionStep(Component):
             [0.5 * ctx.t_end, 0.0], [0.0, -0.6], [ctx.t_end, 0.6],
             [0.05 * ctx.t_end, 0.02],
         )
-        self.starts = [{"t_step_s": f * ctx.t_end} for f in (0.15, 0.3, 0.7, 0.85)]
+        mids = sorted(
+            float(np.mean(w.t[seg.index[[0, -1]]]))
+            for w in ctx.wheels
+            for seg in w.segments
+            if seg.kind == "pause"
+        )
+        if len(mids) > self.MAX_STARTS:
+            mids = [mids[i] for i in np.linspace(0, len(mids) - 1, self.MAX_STARTS).astype(int)]
+        self.starts = [{"t_step_s": m} for m in mids]
 
     def mu_scale(self, x, ctx, w):
         z = np.clip((w.t - float(x[0])) / self.STEP_WIDTH_S, -50.0, 50.0)

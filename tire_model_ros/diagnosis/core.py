@@ -242,21 +242,28 @@ def _assign_folds(
 
     Sweeps run at a rare condition (pressure or camber away from the session's usual value)
     are few: they alternate between the two selection folds, per kind of sweep
-    (lateral / longitudinal), so that every selection fit sees one and predicts another; the
-    other sweeps are taken three at a time in time order, each triple getting a random
-    permutation of the folds, so every fold spans the whole session.
+    (lateral / longitudinal), so that every selection fit sees one and predicts another (the
+    pieces of one long sweep, at one condition, stay together); the other sweeps are taken
+    three at a time in time order, each triple getting a random permutation of the folds, so
+    every fold spans the whole session.
     """
     fold = np.zeros(len(t), dtype=np.int8)
     blocks = _blocks(segments, t)
     rare = [_rare_kind(segments, b, inputs) for b in blocks] if inputs else [None] * len(blocks)
     turn: dict[str, int] = {}
+    last: dict[str, tuple] = {}  # kind -> (condition, fold) of its latest rare block
     common = []
-    for b, kind in zip(blocks, rare, strict=True):
-        if kind is None:
+    for b, r in zip(blocks, rare, strict=True):
+        if r is None:
             common.append(b)
             continue
-        f = turn.setdefault(kind, int(rng.integers(2)))
-        turn[kind] = 1 - f
+        kind, cond = r
+        if kind in last and last[kind][0] == cond:
+            f = last[kind][1]
+        else:
+            f = turn.setdefault(kind, int(rng.integers(2)))
+            turn[kind] = 1 - f
+        last[kind] = (cond, f)
         for i in b:
             fold[segments[i].index] = f
     for j in range(0, len(common), 3):
@@ -267,24 +274,33 @@ def _assign_folds(
     return fold
 
 
-def _rare_kind(segments, block: list[int], inputs: dict) -> str | None:
-    """'x'/'y' (the slip the sweep excites) if the sweep runs at a rare condition, else None."""
+def _rare_kind(segments, block: list[int], inputs: dict) -> tuple[str, tuple] | None:
+    """('x'/'y', condition) if the sweep runs at a rare condition, else None.
+
+    'x'/'y' is the slip the sweep excites; the condition is its pressure and camber, rounded
+    to the tolerances that make them rare.
+    """
     idx = np.concatenate([segments[i].index for i in block])
     rare = False
+    cond = []
     for key, tol in (("p", 0.05),):
         x = inputs.get(key)
         if x is not None:
-            ref = float(np.median(x))
-            rare |= abs(float(np.median(x[idx])) - ref) > tol * max(abs(ref), 1e-9)
+            ref, here = float(np.median(x)), float(np.median(x[idx]))
+            step = tol * max(abs(ref), 1e-9)
+            rare |= abs(here - ref) > step
+            cond.append(round((here - ref) / step))
     g = inputs["gamma"]
-    rare |= abs(float(np.median(g[idx])) - float(np.median(g))) > np.radians(0.5)
+    dg = float(np.median(g[idx])) - float(np.median(g))
+    rare |= abs(dg) > np.radians(0.5)
+    cond.append(round(dg / np.radians(0.5)))
     if not rare:
         return None
     k = float(np.max(np.abs(inputs["kappa"][idx])))
     a = float(np.max(np.abs(inputs["alpha"][idx])))
     if k < 0.01 and a < np.radians(1.0):
         return None  # a pause or hold at the condition: nothing to fit
-    return "x" if k / 0.1 > a / np.radians(5.0) else "y"
+    return ("x" if k / 0.1 > a / np.radians(5.0) else "y"), tuple(cond)
 
 
 def _rows(ctx: cd.Context, folds: tuple[int, ...], stride: int) -> list[np.ndarray]:
@@ -420,6 +436,7 @@ def diagnose(wheels: Sequence, model, *, seed: int = 0) -> Diagnosis:
     cur_fits, cur_score, cur_split = sel.cross_validate(base, ctx, splits, [None, None])
     chosen: list[tuple[sel.Trial, dict]] = []
     pool = _candidates(ctx)
+    drifts = [c for c in pool if c.name == "drift"]
     for _step in range(sel.MAX_EFFECTS):
         names_in = {t.component.name for t, _ in chosen}
         trials = []
@@ -464,7 +481,41 @@ def diagnose(wheels: Sequence, model, *, seed: int = 0) -> Diagnosis:
         if best.component.name == "drift":  # one drift variant is enough
             pool = [c for c in pool if c.name != "drift"]
 
+    cur_fits = _drift_form(ctx, cur_fits, chosen, drifts, rows_ab, log)
     return _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, stride)
+
+
+def _drift_form(ctx, cur_fits, chosen, variants, rows, log) -> list[sel.Fit]:
+    """The form of an accepted drift, chosen among its variants on all training sweeps (BIC).
+
+    Drift has passed the held-out tests as an effect; its form (a trend in work or time, a
+    step) is decided here. A change point is only located between the sweeps a fit sees:
+    fitted on one selection fold, a step can land anywhere in a gap of that fold and lose on
+    the other fold to a straight trend, though it is the better form. On both folds together
+    the gaps are short.
+    """
+    tr = next((t for t, _ in chosen if t.component.name == "drift"), None)
+    if tr is None:
+        return cur_fits
+    comps = cur_fits[0].components
+    j = next(i for i, c in enumerate(comps) if c is tr.component)
+    xs = cd.split_x(comps, np.mean([f.x for f in cur_fits], axis=0))
+    others = [c for i, c in enumerate(comps) if i != j]
+    x_others = [x for i, x in enumerate(xs) if i != j]
+    m = sum(len(r) for r in rows) * len(ctx.channels)
+    fits = []
+    for v in variants:  # the variant goes last: the fit's alternative starts are its own
+        x0 = np.concatenate([*x_others, xs[j] if v is tr.component else np.asarray(v.x0)])
+        f = sel.fit([*others, v], ctx, rows, x0)
+        fits.append((2.0 * f.cost + v.n * math.log(m), v, f))
+        log.append(f"drift form {v.label}: BIC {fits[-1][0]:.1f}")
+    _, v, f = min(fits, key=lambda b: b[0])
+    if v is not tr.component:
+        log.append(f"drift form: {v.label} instead of {tr.component.label} (BIC, training sweeps)")
+        tr.reason = (f"form chosen on the training sweeps by BIC; the held-out figures are "
+                     f"those of the {tr.component.label} form that passed selection")
+        tr.component, tr.parts = v, [v]
+    return [f]
 
 
 def _parts(c: cd.Component, pool, in_model) -> list[cd.Component]:
@@ -775,4 +826,6 @@ def _evidence(tr, per_ch, ch, c, params, unc) -> str:
         )
     shown = [f"{n} = {params[n]:.4g} +- {unc.get(n, float('nan')):.2g}" for n in c.pnames[:4]]
     parts.append("; ".join(shown))
+    if tr.reason:
+        parts.append(tr.reason)
     return f"{c.label}: " + "; ".join(parts)
