@@ -488,14 +488,19 @@ class SpeedTable(Component):
     def __init__(self, ctx: Context):
         Vs = np.concatenate([w.Vs for w in ctx.wheels])
         Vs = Vs[Vs > 0.05]
-        lo, hi = (np.percentile(Vs, [5, 99]) if len(Vs) > 10 else (0.1, 3.0))
+        lo, hi = np.percentile(Vs, [5, 99]) if len(Vs) > 10 else (0.1, 3.0)
         self.lnV = np.linspace(np.log(lo), np.log(max(hi, 2.0 * lo)), self.KNOTS)
         self.ref = int(np.argmin(np.abs(self.lnV - np.log(np.median(Vs) if len(Vs) else 1.0))))
         names = [f"mu_at_{np.exp(v):.2g}_mps" for i, v in enumerate(self.lnV) if i != self.ref]
         n = len(names)
         super().__init__(
-            "speed", "friction table in ln Vs (piecewise linear)", names, [1.0] * n,
-            [0.3] * n, [2.0] * n, [0.02] * n,
+            "speed",
+            "friction table in ln Vs (piecewise linear)",
+            names,
+            [1.0] * n,
+            [0.3] * n,
+            [2.0] * n,
+            [0.02] * n,
         )
 
     def mu_scale(self, x, ctx, w):
@@ -517,8 +522,12 @@ class FrictionStep(Component):
 
     def __init__(self, ctx: Context):
         super().__init__(
-            "drift", "friction step at a fitted time", ["t_step_s", "step_mu_loss"],
-            [0.5 * ctx.t_end, 0.0], [0.0, -0.6], [ctx.t_end, 0.6],
+            "drift",
+            "friction step at a fitted time",
+            ["t_step_s", "step_mu_loss"],
+            [0.5 * ctx.t_end, 0.0],
+            [0.0, -0.6],
+            [ctx.t_end, 0.6],
             [0.05 * ctx.t_end, 0.02],
         )
         mids = sorted(

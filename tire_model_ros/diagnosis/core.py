@@ -29,6 +29,7 @@ from .thermal import cumulative_work_J, frictional_power_W
 FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows are redundant)
 MIN_SEGMENTS = 6
 INPUT_SMOOTH_S = 0.09  # window of the zero-phase input smoother [s]
+ZERO_ALPHA = np.radians(1.0)  # |alpha| below this (and |kappa| < 0.01) counts as zero slip
 
 
 @dataclass
@@ -512,8 +513,10 @@ def _drift_form(ctx, cur_fits, chosen, variants, rows, log) -> list[sel.Fit]:
     _, v, f = min(fits, key=lambda b: b[0])
     if v is not tr.component:
         log.append(f"drift form: {v.label} instead of {tr.component.label} (BIC, training sweeps)")
-        tr.reason = (f"form chosen on the training sweeps by BIC; the held-out figures are "
-                     f"those of the {tr.component.label} form that passed selection")
+        tr.reason = (
+            f"form chosen on the training sweeps by BIC; the held-out figures are "
+            f"those of the {tr.component.label} form that passed selection"
+        )
         tr.component, tr.parts = v, [v]
     return [f]
 
@@ -548,6 +551,8 @@ def _choose(trials, ctx, cur_fits, splits, log) -> sel.Trial | None:
         if c.name == "time_delay" and min(f.x[-1] for f in tr.fits) <= 0.0:
             log.append("time_delay rejected: negative fitted delay is not a delay")
             continue
+        if c.name == "offset" and not _offset_at_zero_slip(tr, ctx, cur_fits, splits, log):
+            continue
         if c.name == "drift":
             # Only a slow node that itself passes (and beats its controls) may stand in for drift.
             bulk = [t for t in trials if _slow_node(t) and sel.passes(t)]
@@ -580,6 +585,36 @@ def _choose(trials, ctx, cur_fits, splits, log) -> sel.Trial | None:
         log.append(f"accepted {c.name} [{c.label}]")
         return tr
     return None
+
+
+def _offset_at_zero_slip(tr, ctx, cur_fits, splits, log) -> bool:
+    """An offset must show where it is defined: on held-out samples near zero slip.
+
+    A constant at zero slip (PHYSICS.md) lowers the held-out error there by the same margin
+    as overall; an offset that only helps on the slopes is standing in for something else.
+    """
+    near = []
+    for _, test in splits:
+        near.append(
+            [
+                r[
+                    (np.abs(w.inputs["kappa"][r]) < 0.01)
+                    & (np.abs(w.inputs["alpha"][r]) < ZERO_ALPHA)
+                ]
+                for w, r in zip(ctx.wheels, test, strict=True)
+            ]
+        )
+    cur = sel.merge(
+        [sel.score(f.components, f.x, ctx, n) for f, n in zip(cur_fits, near, strict=True)]
+    )
+    new = sel.merge(
+        [sel.score(f.components, f.x, ctx, n) for f, n in zip(tr.fits, near, strict=True)]
+    )
+    gain = 1.0 - new.rms / max(cur.rms, 1e-12)
+    if cur.n == 0 or gain < sel.MIN_REL_RMSE_GAIN:
+        log.append(f"offset rejected: held-out gain near zero slip {gain:+.3f} (n {cur.n})")
+        return False
+    return True
 
 
 def _beats_controls(tr, trials, ctx, cur_fits, splits, log) -> bool:
