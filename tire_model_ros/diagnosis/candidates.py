@@ -106,6 +106,11 @@ class Component:
     def output(self, x: np.ndarray, ctx: Context, w: Wheel, wi: int, out: dict, rows) -> None:
         return None
 
+    def settle(self, x: np.ndarray, ctx: Context, rows: list[np.ndarray]) -> np.ndarray:
+        """``x`` with any parameter the fit's ``rows`` leave undetermined set to a neutral
+        value (the fit has converged on ``rows``)."""
+        return x
+
     @property
     def n(self) -> int:
         return len(self.pnames)
@@ -539,6 +544,27 @@ class FrictionStep(Component):
         if len(mids) > self.MAX_STARTS:
             mids = [mids[i] for i in np.linspace(0, len(mids) - 1, self.MAX_STARTS).astype(int)]
         self.starts = [{"t_step_s": m} for m in mids]
+
+    def settle(self, x, ctx, rows):
+        """The change point to the middle of the gap between the fitted sweeps it lies in.
+
+        Between two fitted sweeps (pauses, held-out sweeps) the cost is flat in t_c; where
+        the optimiser stopped is arbitrary, the middle errs least either way.
+        """
+        tc = float(x[0])
+        seen = np.concatenate(
+            [
+                w.t[r][
+                    (np.abs(w.inputs["kappa"][r]) > 0.005) | (np.abs(w.inputs["alpha"][r]) > 0.01)
+                ]
+                for w, r in zip(ctx.wheels, rows, strict=True)
+            ]
+        )
+        before, after = seen[seen < tc], seen[seen >= tc]
+        if len(before) and len(after):
+            x = np.array(x, dtype=float)
+            x[0] = 0.5 * (float(before.max()) + float(after.min()))
+        return x
 
     def mu_scale(self, x, ctx, w):
         z = np.clip((w.t - float(x[0])) / self.STEP_WIDTH_S, -50.0, 50.0)

@@ -661,6 +661,12 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
     comps = cur_fits[0].components
     x0 = np.mean([f.x for f in cur_fits], axis=0)
     final = sel.fit(comps, ctx, rows_ab, x0, max_nfev=80)
+    final.x = np.concatenate(
+        [
+            c.settle(xc, ctx, rows_ab)
+            for c, xc in zip(comps, cd.split_x(comps, final.x), strict=True)
+        ]
+    )
     base_fit = sel.fit(base, ctx, rows_ab, x0[: base[0].n])
     xs = cd.split_x(comps, final.x)
     full = [np.arange(w.n) for w in ws]
