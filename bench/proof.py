@@ -10,10 +10,12 @@ in a subprocess that sees only the bag and the .tir FILE. For effects that a .ti
 (camber, combined slip, speed, pressure/temperature terms), FILE is a copy of the tyre with
 those terms zeroed while the rig keeps the physics; the copies are written with ``write_tir``.
 
-Note: the rig's physics is not the form the diagnosis fits. The rig heats a two-node thermal
-model (tread surface + carcass) with a grip window, its gas pressure follows the gas law, its
-wear and speed laws are its own; the diagnosis fits one thermal state with the TTX/TTY
-polynomials of the .tir temperature extension, the .tir pressure terms, and so on. A good score
+Note: the rig's physics is not the form the diagnosis fits. The rig heats a three-node thermal
+model (tread surface, carcass, gas) with a grip window, its gas pressure follows the gas law,
+its speed law is Savkoor's, its wear grows faster on a hot tread, its belt friction steps at a
+pause; the diagnosis fits one thermal state with the TTX/TTY polynomials of the .tir
+temperature extension (plus a slow node), the .tir pressure terms, a friction table in ln Vs,
+a trend in frictional work or time or a step at a fitted time, and so on. A good score
 therefore means the diagnosis names and models physics it was not written to match exactly.
 
 Scoring (printed, and written as proof.json / proof.md into the output dir):
@@ -412,11 +414,16 @@ def print_table(outcomes: list[Outcome]) -> None:
 
 
 PHYSICS_NOTE = (
-    "The rig's physics differs from the forms the diagnosis fits: the rig heats a two-node "
-    "thermal model (tread surface + carcass) with a grip window and its own gas, wear and speed "
-    "laws; the diagnosis fits one thermal state with the .tir TTX/TTY polynomials, the .tir "
-    "pressure terms and its own simple forms. Truth files were moved out of the bags' folder "
-    "before each diagnosis, which saw only the bag and the .tir file."
+    "The rig's physics differs from the forms the diagnosis fits: the rig heats a three-node "
+    "thermal model (tread surface, carcass, gas) with a grip window, has Savkoor's speed law, "
+    "wear that grows faster on a hot tread and a friction step at a pause; the diagnosis fits "
+    "one thermal state with the .tir TTX/TTY polynomials (plus a slow node), the .tir pressure "
+    "terms, a friction table in ln Vs, a trend or a step at a fitted time. Truth files and "
+    "the noise-free twins were moved out of the bags' folder before each diagnosis, which saw "
+    "only the bag and the .tir file; the twin is read after the diagnosis is complete. "
+    "Raw: held-out RMSE against the measured forces (floor: the nulls, ~46 N, sensor noise on "
+    "forces and on slip/load). Clean: the same fitted models replayed on the twin's true "
+    "inputs, against its true forces (model error)."
 )
 
 
