@@ -30,6 +30,17 @@ def add_arguments(parser) -> None:
         metavar="PREFIX",
         help="diagnose only this wheel (repeatable; default: every wheel)",
     )
+    parser.add_argument(
+        "--reference",
+        metavar="BAG2",
+        help="a twin recording of the same session (e.g. the rig's noise-free one): the "
+        "baseline and improved models are also scored on its held-out samples",
+    )
+    parser.add_argument(
+        "--reference-json",
+        metavar="OUT2",
+        help="write the held-out RMSE against BAG2 here (the fit blocks of the JSON)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the sweep folds (default 0)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
 
@@ -67,7 +78,9 @@ def run(args) -> int:
     from tire_model_ros.recording.bag import read_recording
 
     out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
-    for path in (args.json, args.out_tir):
+    if bool(args.reference) != bool(args.reference_json):
+        raise ValueError("--reference and --reference-json go together")
+    for path in (args.json, args.out_tir, args.reference_json):
         _check_free(path, args.force)
     if (
         args.report
@@ -97,6 +110,15 @@ def run(args) -> int:
     if args.json:
         write_json_atomic(diag.to_json(), args.json, overwrite=args.force)
         print(f"wrote {args.json}")
+    if args.reference:
+        ref = diag.score_reference(list(read_recording(args.reference, wheels=args.wheel).values()))
+        for ch in ref["heldout_baseline"]:
+            a = ref["heldout_baseline"][ch]["rmse"]
+            b = ref["heldout_improved"][ch]["rmse"]
+            if a is not None and b is not None:
+                print(f"  held-out {ch} RMSE against {args.reference}: {a:.1f} -> {b:.1f}")
+        write_json_atomic(ref, args.reference_json, overwrite=args.force)
+        print(f"wrote {args.reference_json}")
     if args.report:
         from tire_model_ros.diagnosis.report import write_report
 

@@ -7,7 +7,8 @@ one or more of four places:
   combined-slip coefficients) -- global for the session;
 - ``inputs``: transformed model inputs (a hidden temperature or gas-pressure state, lagged or
   delayed slip);
-- ``mu_scale``: a per-sample friction scale (wear, speed-dependent friction);
+- ``mu_scale``: a per-sample friction scale (wear, speed-dependent friction, a friction
+  step), applied by the similarity method (``_evaluate_similarity``);
 - ``output``: additive force offsets.
 
 The predictor evaluates the model once per wheel on the transformed inputs. Every component's
@@ -105,8 +106,10 @@ class Component:
     def output(self, x: np.ndarray, ctx: Context, w: Wheel, wi: int, out: dict, rows) -> None:
         return None
 
-    def uses_T(self) -> bool:
-        return False
+    def settle(self, x: np.ndarray, ctx: Context, rows: list[np.ndarray]) -> np.ndarray:
+        """``x`` with any parameter the fit's ``rows`` leave undetermined set to a neutral
+        value (the fit has converged on ``rows``)."""
+        return x
 
     @property
     def n(self) -> int:
@@ -166,9 +169,6 @@ class ThermalHidden(Component):
         if mode != "memoryless":  # the time constant is the non-convex direction
             self.starts = [{"tau_T_s": 2.0}, {"tau_T_s": 15.0}]
 
-    def uses_T(self) -> bool:
-        return True
-
     def _tau(self, x) -> float:
         return 1e-3 if self.mode == "memoryless" else float(x[0])
 
@@ -227,9 +227,6 @@ class ThermalRecorded(Component):
             [0.1] * n,
         )
 
-    def uses_T(self) -> bool:
-        return True
-
     def coef(self, x, ctx):
         return {k: ctx.base[k] + float(v) for k, v in zip(self.pnames, x, strict=True)}
 
@@ -262,7 +259,8 @@ class GasHidden(Component):
 class PressureRecorded(Component):
     """Recorded pressure: refit the file's main pressure terms."""
 
-    NAMES = ("PPX1", "PPX3", "PPY1", "PPY3")
+    # MF 6.1: Kxk (PPX1, PPX2), mux (PPX3, PPX4), Kya (PPY1, PPY2), muy (PPY3, PPY4)
+    NAMES = ("PPX1", "PPX2", "PPX3", "PPX4", "PPY1", "PPY2", "PPY3", "PPY4")
 
     def __init__(self, ctx: Context):
         names = [
@@ -481,6 +479,98 @@ class Speed(Component):
         return 1.0 / np.maximum(1.0 + float(x[0]) * w.Vs / ctx.V0, 0.05)
 
 
+class SpeedTable(Component):
+    """Friction against sliding speed as a table: linear in ln Vs between fixed knots.
+
+    A generic curve (no law assumed; it can rise, peak and fall), for friction that is not
+    monotone in Vs. The knots are log-spaced over the sliding speeds where the tyre slides
+    (5th to 99th percentile of Vs above 0.05 m/s); the one nearest the median is held at 1
+    (the scaling factors carry the level), so the fitted values are relative to it.
+    """
+
+    KNOTS = 5
+
+    def __init__(self, ctx: Context):
+        Vs = np.concatenate([w.Vs for w in ctx.wheels])
+        Vs = Vs[Vs > 0.05]
+        lo, hi = np.percentile(Vs, [5, 99]) if len(Vs) > 10 else (0.1, 3.0)
+        self.lnV = np.linspace(np.log(lo), np.log(max(hi, 2.0 * lo)), self.KNOTS)
+        self.ref = int(np.argmin(np.abs(self.lnV - np.log(np.median(Vs) if len(Vs) else 1.0))))
+        names = [f"mu_at_{np.exp(v):.2g}_mps" for i, v in enumerate(self.lnV) if i != self.ref]
+        n = len(names)
+        super().__init__(
+            "speed",
+            "friction table in ln Vs (piecewise linear)",
+            names,
+            [1.0] * n,
+            [0.3] * n,
+            [2.0] * n,
+            [0.02] * n,
+        )
+
+    def mu_scale(self, x, ctx, w):
+        knots = np.insert(np.asarray(x, float), self.ref, 1.0)
+        return np.interp(np.log(np.maximum(w.Vs, 1e-4)), self.lnV, knots)
+
+
+class FrictionStep(Component):
+    """A step in friction at a fitted time (belt or road change between runs).
+
+    mu scale = 1 - d H(t - t_c), with H a logistic of width STEP_WIDTH_S. The cost is flat in
+    t_c across a pause (no force there) and has a local minimum at each one, so the fit
+    starts from every pause (at most MAX_STARTS of them, evenly picked), where a change
+    between runs happens, and keeps the best.
+    """
+
+    STEP_WIDTH_S = 1.0
+    MAX_STARTS = 24
+
+    def __init__(self, ctx: Context):
+        super().__init__(
+            "drift",
+            "friction step at a fitted time",
+            ["t_step_s", "step_mu_loss"],
+            [0.5 * ctx.t_end, 0.0],
+            [0.0, -0.6],
+            [ctx.t_end, 0.6],
+            [0.05 * ctx.t_end, 0.02],
+        )
+        mids = sorted(
+            float(np.mean(w.t[seg.index[[0, -1]]]))
+            for w in ctx.wheels
+            for seg in w.segments
+            if seg.kind == "pause"
+        )
+        if len(mids) > self.MAX_STARTS:
+            mids = [mids[i] for i in np.linspace(0, len(mids) - 1, self.MAX_STARTS).astype(int)]
+        self.starts = [{"t_step_s": m} for m in mids]
+
+    def settle(self, x, ctx, rows):
+        """The change point to the middle of the gap between the fitted sweeps it lies in.
+
+        Between two fitted sweeps (pauses, held-out sweeps) the cost is flat in t_c; where
+        the optimiser stopped is arbitrary, the middle errs least either way.
+        """
+        tc = float(x[0])
+        seen = np.concatenate(
+            [
+                w.t[r][
+                    (np.abs(w.inputs["kappa"][r]) > 0.005) | (np.abs(w.inputs["alpha"][r]) > 0.01)
+                ]
+                for w, r in zip(ctx.wheels, rows, strict=True)
+            ]
+        )
+        before, after = seen[seen < tc], seen[seen >= tc]
+        if len(before) and len(after):
+            x = np.array(x, dtype=float)
+            x[0] = 0.5 * (float(before.max()) + float(after.min()))
+        return x
+
+    def mu_scale(self, x, ctx, w):
+        z = np.clip((w.t - float(x[0])) / self.STEP_WIDTH_S, -50.0, 50.0)
+        return 1.0 - float(x[1]) / (1.0 + np.exp(-z))
+
+
 class Wear(Component):
     """Never-recovering drift: friction scale linear in cumulative frictional work (wear)."""
 
@@ -509,23 +599,6 @@ def split_x(components: list[Component], x: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def _mu_levels(
-    s: np.ndarray, max_levels: int = 4
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Grid levels bracketing each sample's scale, the interpolation weight, the step.
-
-    The step is a power-of-two multiple of 0.01 so that the grid does not move when the
-    parameters move a little (the prediction stays smooth in them).
-    """
-    step = 0.01
-    while (np.max(s) - np.min(s)) / step > max_levels:
-        step *= 2.0
-    q = s / step
-    lo = np.floor(q)
-    f = q - lo
-    return lo.astype(np.int64), lo.astype(np.int64) + 1, f, step
-
-
 def predict(
     components: list[Component], x: np.ndarray, ctx: Context, wi: int, rows: np.ndarray
 ) -> dict[str, np.ndarray]:
@@ -543,20 +616,28 @@ def predict(
         m = c.mu_scale(xc, ctx, w)
         if m is not None:
             s = m if s is None else s * m
-    T_used = any(c.uses_T() for c in components) or w.inputs["T"] is not None
     args = {
         k: (None if inp[k] is None else inp[k][rows])
         for k in ("Fz", "kappa", "alpha", "gamma", "V", "p", "T")
     }
     if s is None:
         out = _evaluate(ctx.model, upd, args)
-    elif not T_used:
-        out = _evaluate_mu_carrier(ctx, upd, args, s[rows])
     else:
-        out = _evaluate_mu_levels(ctx, upd, args, s[rows])
+        out = _evaluate_similarity(ctx.model, upd, args, s[rows])
     for c, xc in zip(components, xs, strict=True):
         c.output(xc, ctx, w, wi, out, rows)
     return out
+
+
+def _evaluate_similarity(model, upd: dict, a: dict, s: np.ndarray) -> dict[str, np.ndarray]:
+    """A per-sample friction scale s by the similarity method (Pacejka 2012 §4.3.2):
+    F = s F0(kappa / s, tan(alpha) / s), the slip stiffnesses kept."""
+    a = dict(a)
+    s = np.maximum(s, 0.05)
+    a["kappa"] = a["kappa"] / s
+    a["alpha"] = np.arctan(np.tan(a["alpha"]) / s)
+    out = _evaluate(model, upd, a)
+    return {ch: v * s for ch, v in out.items()}
 
 
 def _evaluate(model, upd: dict, a: dict) -> dict[str, np.ndarray]:
@@ -565,51 +646,3 @@ def _evaluate(model, upd: dict, a: dict) -> dict[str, np.ndarray]:
         a["Fz"], a["kappa"], a["alpha"], a["gamma"], Vx=a["V"], p=a["p"], T=a["T"], full=False
     )
     return {"Fx": np.asarray(o.Fx), "Fy": np.asarray(o.Fy), "Mz": np.asarray(o.Mz)}
-
-
-def _mu_axes(ctx: Context) -> tuple[bool, bool]:
-    """The friction coefficients a per-sample scale acts on: those the recording sweeps.
-
-    A direction that is not swept has no refitted scaling factor either; scaling its friction
-    would only move a channel the data cannot calibrate.
-    """
-    ax, ay = ctx.informative["x"], ctx.informative["y"]
-    return (ax, ay) if (ax or ay) else (True, True)
-
-
-def _evaluate_mu_carrier(ctx: Context, upd: dict, a: dict, s: np.ndarray):
-    """A per-sample friction scale through the model's own temperature input.
-
-    With T unused, setting TTX3 = TTY3 = 1 (other TT terms 0) and T = NOMTEMP * s makes
-    mux, muy scale by exactly s, sample by sample, in one evaluation.
-    """
-    u = dict(upd)
-    u.update({k: 0.0 for k in ("TTX1", "TTX2", "TTX4", "TTY1", "TTY2", "TTY4")})
-    ax, ay = _mu_axes(ctx)
-    u.update({"TTX3": 1.0 if ax else 0.0, "TTY3": 1.0 if ay else 0.0})
-    a = dict(a)
-    a["T"] = ctx.base["NOMTEMP"] * s
-    return _evaluate(ctx.model, u, a)
-
-
-def _evaluate_mu_levels(ctx: Context, upd: dict, a: dict, s: np.ndarray):
-    """A per-sample friction scale when T is in use: interpolate between scaled-model levels."""
-    lo, hi, f, step = _mu_levels(s)
-    out = {ch: np.zeros(len(s)) for ch in CHANNELS}
-    mux0 = upd.get("LMUX", ctx.base["LMUX"])
-    muy0 = upd.get("LMUY", ctx.base["LMUY"])
-    for lev in np.unique(np.concatenate([lo, hi])):
-        sel_lo = lo == lev
-        sel_hi = hi == lev
-        sel = sel_lo | sel_hi
-        u = dict(upd)
-        ax, ay = _mu_axes(ctx)
-        u.update(
-            {"LMUX": mux0 * (lev * step if ax else 1.0), "LMUY": muy0 * (lev * step if ay else 1.0)}
-        )
-        sub = {k: (None if v is None else v[sel]) for k, v in a.items()}
-        o = _evaluate(ctx.model, u, sub)
-        wgt = np.where(sel_lo[sel], 1.0 - f[sel], 0.0) + np.where(sel_hi[sel], f[sel], 0.0)
-        for ch in CHANNELS:
-            out[ch][sel] += wgt * o[ch]
-    return out

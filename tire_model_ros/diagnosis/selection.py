@@ -250,7 +250,7 @@ class Trial:
     weighted_fraction: float = 0.0  # share of the total per-segment change that improved
     controls: dict[str, float] = field(default_factory=dict)  # control label -> held-out rms
     passed: bool = False
-    reason: str = ""
+    reason: str = ""  # a note for the evidence (e.g. how the effect's form was chosen)
     split_scores: list[Score] = field(default_factory=list)
     # The components the trial adds: ``component`` and any refinement tried with it.
     parts: list[Component] = field(default_factory=list)

@@ -36,7 +36,10 @@ DEFAULTS: dict[str, dict[str, float]] = {
     "camber": {"per_deg": -0.026, "saturation_deg": 6.0, "fade_deg": 12.0},
     "combined": {"peak_scale": 1.0},
     "speed_friction": {"mu0_ratio": 0.6, "Vm_mps": 0.5, "h": 0.4, "Vs_ref_mps": -1.0},
-    "wear": {"loss_per_km": 0.08},
+    # grip loss per km of equivalent sliding; abrasion grows with the tread's heat (per K of
+    # surface above ambient), so wear is not a function of the frictional work alone. The
+    # size (about 3.5 % over a flat_trac session) is what the heat-free 0.08/km gave before.
+    "wear": {"loss_per_km": 0.05, "abrasion_per_K": 0.02},
     "mu_step": {"ratio": 0.95, "at_s": -1.0},
     "noise": {"scale": 1.0, "colour": 0.5, "tau_s": 0.5},
     "load_ripple": {"amplitude": 0.02, "harmonic": 1.0, "recorded": 1.0},
@@ -58,7 +61,7 @@ NON_NEGATIVE = {
     "heating": ("k_surface_K_per_m", "k_bulk_K_per_m"),
     "delay": ("tau_s",),
     "speed_friction": ("mu0_ratio", "h"),
-    "wear": ("loss_per_km",),
+    "wear": ("loss_per_km", "abrasion_per_K"),
     "noise": ("scale", "colour"),
     "load_ripple": ("amplitude",),
 }

@@ -10,8 +10,8 @@ Programmes
 ``flat_trac``
     An MTS Flat-Trac style session: warm-up, reference sweeps repeated through the session,
     pure lateral sweeps at 0.5/1/1.5 FNOMIN, pure longitudinal sweeps at the same loads, a
-    pressure block (0.8/1.2 NOMPRES; only when the pressure channel is recorded), two sweep
-    rates, two speeds, a reversed sweep, combined-slip sweeps (alpha held, kappa swept), a
+    pressure block (0.8/1.1/1.2/0.9 NOMPRES; only when the pressure channel is recorded), two
+    sweep rates, two speeds, a reversed sweep, combined-slip sweeps (alpha held, kappa swept), a
     camber block, a heat soak (raises the bulk temperature) and a cooling pause.
 ``lateral_sweeps``, ``longitudinal_sweeps``, ``combined``, ``camber``, ``pressure``
     Smaller focused sessions (2-4 min).
@@ -281,7 +281,9 @@ def _flat_trac(b: RigBuilder, opt: dict) -> None:
             b.pause(2.0)
         b.set_state(Fz=F)
         if opt["vary_pressure"]:
-            for f in (0.8, 1.2):
+            # Four pressures (two are needed per side to see the quadratic MF terms), not in
+            # monotone order, so that pressure is not confounded with the session's heating.
+            for f in (0.8, 1.1, 1.2, 0.9):
                 b.set_state(p=f * ty.NOMPRES, duration_s=3.0)
                 b.lateral_sweep(A, label=f"lateral p={f:g}NOMPRES")
                 b.pause(2.0)

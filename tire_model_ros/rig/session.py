@@ -5,9 +5,10 @@ Order of the physics per wheel (one programme sample = one ``slip`` message):
 1. true inputs from the programme; ``load_ripple`` modulates the true load at wheel frequency;
 2. ``relaxation`` filters the slips in travelled distance -> the slips the contact patch has;
 3. friction/stiffness scales: ``speed_friction`` (Savkoor, on the sliding speed), ``mu_step``
-   (belt friction step), ``wear`` (cumulative frictional work), ``heating`` (surface grip
-   window, carcass stiffness) -- the thermal nodes always run so the temperature sensor has
-   something to read; ``gas_pressure`` feeds the gas-law pressure to the model;
+   (belt friction step), ``wear`` (frictional work, weighted by the tread's heat),
+   ``heating`` (surface grip window, carcass stiffness) -- the thermal nodes always run so the
+   temperature sensor has something to read; ``gas_pressure`` feeds the gas-law pressure to
+   the model;
 4. base forces = TireModel.evaluate on the effective inputs, friction scaled by the
    similarity method (F = mu F_model(s x / mu)) and, with ``combined``, pure-slip forces
    combined by normalised total slip instead of the file's G functions; the thermal loop is
@@ -169,13 +170,20 @@ def _thermal_fixed_point(model, prog, wp, tyre, Fz, kappa, alpha, mu_static, eff
             mu *= grip_factor(Ts, Tb, hp)
             stiff = stiffness_factor(Tb, hp)
         if wear:
-            E = np.concatenate([[0.0], np.cumsum(P[:-1]) * dt])
-            mu *= np.maximum(1.0 - eff["wear"]["loss_per_km"] * E / tyre.FNOMIN / 1000.0, 0.2)
+            mu *= _wear_factor(P, Ts, prog.T_ambient, dt, tyre.FNOMIN, eff["wear"])
         if gas:
             p_true = gas_law_pressure(wp.p_set, Tg, prog.run)
     return {"forces": forces, "T_surface": Ts, "T_bulk": Tb, "T_gas": Tg, "p_true": p_true,
             "mu_factor": mu, "stiffness_factor": stiff, "P_fric": P,
             "iterations": iteration + 1}
+
+
+def _wear_factor(P, Ts, T_amb, dt, FNOMIN, wp: dict) -> np.ndarray:
+    """Grip left after abrasion: the worn depth grows with the frictional power, faster on a
+    hot tread (1 + abrasion_per_K (Ts - T_amb)); grip falls linearly with it (floor 0.2)."""
+    rate = P * (1.0 + wp["abrasion_per_K"] * np.maximum(Ts - T_amb, 0.0))
+    worn = np.concatenate([[0.0], np.cumsum(rate[:-1]) * dt])  # J-equivalent
+    return np.maximum(1.0 - wp["loss_per_km"] * worn / FNOMIN / 1000.0, 0.2)
 
 
 def _force_effects(forces, Fz, gamma, alpha, t_rel, eff) -> dict:
