@@ -1,9 +1,18 @@
-"""The one numba decorator every Magic Formula kernel uses, and its cache guard.
+"""The numba decorators of the Magic Formula kernels, and their cache guard.
 
+``kernel`` (an equation: scalars in, scalars out) is inlined into its caller at numba level
+(``inline="always"``), so that the sample loops of :mod:`.kernel` contain no calls and LLVM
+vectorises them; ``driver`` (a loop over samples) is compiled on its own.
 ``error_model="numpy"``: a division by zero gives inf/NaN like numpy instead of raising, so bad
-inputs cannot crash an evaluation. No fastmath: the oracle comparison needs IEEE arithmetic.
+inputs cannot crash an evaluation. No fastmath: the oracle comparison needs IEEE arithmetic
+(:mod:`.vmath` alone allows FMA contraction).
 ``cache=True``: compiled code is stored in ``__pycache__`` beside the sources and reused by
-later processes (first compile about 25 s of CPU, a cached load about 1 s).
+later processes.
+
+LLVM interleaves a vectorised loop up to 4 times when its cost model likes it; on the long
+bodies of these loops that makes the compile take minutes instead of seconds, and buys nothing
+(the bodies have plenty of independent work). ``-force-vector-interleave=1`` is set for the
+process: it only stops that unrolling, for every numba loop compiled afterwards.
 
 numba keys a cached function on its own source file only: a kernel in ``kernel.py`` compiled
 with an older ``forces.py`` would be loaded stale after ``forces.py`` changed. The guard below
@@ -17,11 +26,12 @@ import hashlib
 import os
 from pathlib import Path
 
+import llvmlite.binding as llvm
 from numba import njit
 
 _HERE = Path(__file__).resolve().parent
 _SOURCES = ("jit.py", "coef.py", "conditions.py", "forces.py", "moments.py",
-            "vertical.py", "kernel.py")  # fmt: skip
+            "vertical.py", "kernel.py", "vmath.py")  # fmt: skip
 
 
 def _sources_digest() -> str:
@@ -57,5 +67,7 @@ def _guard_cache() -> None:
 
 
 _guard_cache()
+llvm.set_option("tire_model_ros", "-force-vector-interleave=1")
 
-kernel = njit(cache=True, error_model="numpy")
+kernel = njit(cache=True, error_model="numpy", inline="always")
+driver = njit(cache=True, error_model="numpy")
