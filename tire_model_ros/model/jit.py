@@ -9,10 +9,14 @@ inputs cannot crash an evaluation. No fastmath: the oracle comparison needs IEEE
 ``cache=True``: compiled code is stored in ``__pycache__`` beside the sources and reused by
 later processes.
 
-LLVM interleaves a vectorised loop up to 4 times when its cost model likes it; on the long
-bodies of these loops that makes the compile take minutes instead of seconds, and buys nothing
-(the bodies have plenty of independent work). ``-force-vector-interleave=1`` is set for the
-process: it only stops that unrolling, for every numba loop compiled afterwards.
+Two code-generation settings, for every numba function the process compiles afterwards:
+
+- LLVM interleaves a vectorised loop up to 4 times when its cost model likes it; on the long
+  bodies of these loops that makes the compile take minutes instead of seconds.
+  ``-force-vector-interleave=1`` stops that unrolling.
+- LLVM's tuning for AVX-512 Intel cores prefers 256-bit vectors; the stage loops are bound by
+  arithmetic and run about 1.4x faster on 512-bit ones, so ``-prefer-256-bit`` is switched off
+  (no effect on a CPU without AVX-512; a NUMBA_CPU_FEATURES set by the user is kept).
 
 numba keys a cached function on its own source file only: a kernel in ``kernel.py`` compiled
 with an older ``forces.py`` would be loaded stale after ``forces.py`` changed. The guard below
@@ -27,7 +31,7 @@ import os
 from pathlib import Path
 
 import llvmlite.binding as llvm
-from numba import njit
+from numba import config, njit
 
 _HERE = Path(__file__).resolve().parent
 _SOURCES = ("jit.py", "coef.py", "conditions.py", "forces.py", "moments.py",
@@ -68,6 +72,10 @@ def _guard_cache() -> None:
 
 _guard_cache()
 llvm.set_option("tire_model_ros", "-force-vector-interleave=1")
+if config.CPU_FEATURES is None:
+    config.CPU_FEATURES = llvm.get_host_cpu_features().flatten() + ",-prefer-256-bit"
 
 kernel = njit(cache=True, error_model="numpy", inline="always")
 driver = njit(cache=True, error_model="numpy")
+vkernel = njit(cache=True, error_model="numpy", inline="always", fastmath={"contract"})
+"""The decorator of :mod:`.vmath`: ``kernel`` with FMA contraction allowed."""
