@@ -2,7 +2,8 @@
 
 ``kernel`` (an equation: scalars in, scalars out) is inlined into its caller at numba level
 (``inline="always"``), so that the sample loops of :mod:`.kernel` contain no calls and LLVM
-vectorises them; ``driver`` (a loop over samples) is compiled on its own.
+vectorises them; ``standalone`` is compiled on its own: the sample loops, and the vertical
+equations that the (unvectorised) loop of the full outputs calls.
 ``error_model="numpy"``: a division by zero gives inf/NaN like numpy instead of raising, so bad
 inputs cannot crash an evaluation. No fastmath: the oracle comparison needs IEEE arithmetic
 (:mod:`.vmath` alone allows FMA contraction).
@@ -76,6 +77,6 @@ if config.CPU_FEATURES is None:
     config.CPU_FEATURES = llvm.get_host_cpu_features().flatten() + ",-prefer-256-bit"
 
 kernel = njit(cache=True, error_model="numpy", inline="always")
-driver = njit(cache=True, error_model="numpy")
+standalone = njit(cache=True, error_model="numpy")
 vkernel = njit(cache=True, error_model="numpy", inline="always", fastmath={"contract"})
 """The decorator of :mod:`.vmath`: ``kernel`` with FMA contraction allowed."""

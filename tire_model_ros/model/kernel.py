@@ -23,7 +23,7 @@ from .conditions import (
     temperature_increment,
 )
 from .forces import Fx0_pure, Fy0_pure, Gxa_weighting, Gyk_weighting, SVyk_shift
-from .jit import driver, kernel
+from .jit import kernel, standalone
 from .moments import Mx_overturning, My_rolling_resistance, Mz_aligning
 from .vertical import contact_patch, deflection_61, deflection_62, relaxation, rolling_state
 
@@ -156,10 +156,10 @@ def _moments_stage(P, kappa, Vx, mf52, i0, n, s):
         gamma_ = s[S_GAMMA, j]
         s[MX, j] = Mx_overturning(P, s[S_FZ, j], gamma_, s[S_DPI, j], s[FY, j])
         s[MY, j] = My_rolling_resistance(P, s[FZ, j], kappa[i], gamma_, Vx[i], s[S_P, j],
-                                           s[FX, j], mf52)  # fmt: skip
+                                         s[FX, j], mf52)  # fmt: skip
 
 
-@driver
+@standalone
 def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out):
     """Rows 0..N_FORCES-1 of ``out`` for every sample, block by block, stage by stage.
 
@@ -182,7 +182,7 @@ def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out):
             out[k, i0 : i0 + n] = s[k, :n]
 
 
-@driver
+@standalone
 def extras_loop(P, Fz, kappa, alpha, gamma, Vx, p, phit, omega, limits, out):
     """Rows N_FORCES.. of ``out``: radii, deflection, stiffnesses, relaxation, used inputs.
 
@@ -231,7 +231,7 @@ def evaluate_batch(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, limits, ou
         extras_loop(P, Fz, kappa, alpha, gamma, Vx, p, phit, omega, bool(limits), out)
 
 
-@driver
+@standalone
 def evaluate_point(P, Fz, kappa, alpha, gamma, Vx, p, T, limits):
     """(Fx, Fy, Fz, Mx, My, Mz) of one sample: the batch stages on a block of one."""
     x = np.empty((8, 1))  # rows: the batch inputs, phit = 0

@@ -13,6 +13,7 @@ import math
 from . import coef as c
 from . import vmath as vm
 from .conditions import EPS, cos_atan, nominal_load, sign0, sign1
+from .forces import weighting
 from .jit import kernel
 
 
@@ -181,8 +182,7 @@ def Mz_aligning(
         * P[c.LS]
     )  # (A56)
     Mzr = Dr * cos_atan(Br * alphar_eq)  # (4.E75), Cr = 1
-    Bta = Bt * alphat_eq
-    t = Dt * vm.cos(Ct * vm.atan(Bta - Et * (Bta - vm.atan(Bta)))) * cos_alpha_p
+    t = Dt * weighting(Bt, Ct, Et, alphat_eq) * cos_alpha_p
     t = t * P[c.LFZO]  # (4.E73); the LFZO factor is TNO's (MFeval note)
     t = t * red_smooth
     Mzr = Mzr * red_smooth
