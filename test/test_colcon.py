@@ -62,7 +62,9 @@ def _seed_numba_cache(site: Path) -> int:
             st = src.stat()
             os.utime(py, ns=(st.st_atime_ns, st.st_mtime_ns))
     n = 0
-    for cached in (ROOT / "tire_model_ros").rglob("__pycache__/*.nb[ic]"):
+    pycache = (ROOT / "tire_model_ros").rglob("__pycache__/*")
+    # the .sha256 stamp of model/jit.py's cache guard too, or the guard drops the copied cache
+    for cached in (f for f in pycache if f.suffix in (".nbi", ".nbc", ".sha256")):
         rel = cached.relative_to(ROOT)
         dest = site / rel
         if dest.parent.parent.is_dir():

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 from . import coef as c
+from . import vmath as vm
 from .jit import kernel
 
 EPS = 1e-6  # epsilon of (4.E6a); MFeval uses one value for every guard
@@ -58,7 +59,7 @@ def low_speed_factors(P, Vx: float, limits: bool) -> tuple[float, float]:
     if not limits or not (abs(Vx) <= VXLOW):
         return 1.0, 1.0
     linear = abs(Vx / VXLOW)
-    Wvlow = 0.5 * (1.0 + math.cos(math.pi * (Vx / VXLOW)))
+    Wvlow = 0.5 * (1.0 + vm.cos(math.pi * (Vx / VXLOW)))
     return linear, 1.0 - Wvlow
 
 
@@ -87,11 +88,11 @@ def operating_point(P, Fz, kappa, alpha, gamma, Vx, p, phit, limits):
         # Slip angle reduced with the total (longitudinal + lateral) contact speed
         # (only possible below VXLOW: skip the tan above it).
         if abs(Vx) < VXLOW:
-            speed_sum = abs(Vx) + abs(math.tan(alpha) * Vx)
+            speed_sum = abs(Vx) + abs(vm.tan(alpha) * Vx)
             if speed_sum < VXLOW:
                 alpha = alpha * (speed_sum / VXLOW)
         if phit != 0.0:
-            phit = phit * math.cos(alpha)  # empirical TNO choice mirrored by MFeval
+            phit = phit * vm.cos(alpha)  # empirical TNO choice mirrored by MFeval
         alpha = clip(alpha, P[c.ALPMIN], P[c.ALPMAX])
         gamma = clip(gamma, P[c.CAMMIN], P[c.CAMMAX])
         Fz = clip(uFz, 0.0, P[c.FZMAX])
@@ -136,7 +137,7 @@ def cos_alpha_prime(alpha: float, Vx: float) -> float:
 
     Vcy is taken equal to the lateral slip speed tan(alpha)|Vcx| (MFeval's assumption).
     """
-    Vcy = math.tan(alpha) * abs(Vx)
+    Vcy = vm.tan(alpha) * abs(Vx)
     Vc = math.sqrt(Vx * Vx + Vcy * Vcy)
     Vc_prime = Vc + EPS * sign1(Vc)
     return clip(Vx / Vc_prime, -1.0, 1.0)

@@ -8,9 +8,8 @@ Turn slip is not modelled: every zeta factor is 1.
 
 from __future__ import annotations
 
-import math
-
 from . import coef as c
+from . import vmath as vm
 from .conditions import EPS, cos_atan, nominal_load, sign1
 from .jit import kernel
 
@@ -19,14 +18,14 @@ from .jit import kernel
 def magic_formula(B: float, C: float, D: float, E: float, x: float) -> float:
     """y = D sin(C atan(Bx - E(Bx - atan Bx))) (4.E9, 4.E19 without the shift)."""
     Bx = B * x
-    return D * math.sin(C * math.atan(Bx - E * (Bx - math.atan(Bx))))
+    return D * vm.sin(C * vm.atan(Bx - E * (Bx - vm.atan(Bx))))
 
 
 @kernel
 def weighting(B: float, C: float, E: float, x: float) -> float:
     """Cosine weighting cos(C atan(Bx - E(Bx - atan Bx))) of (4.E51), (4.E59)."""
     Bx = B * x
-    return math.cos(C * math.atan(Bx - E * (Bx - math.atan(Bx))))
+    return vm.cos(C * vm.atan(Bx - E * (Bx - vm.atan(Bx))))
 
 
 @kernel
@@ -58,7 +57,7 @@ def Kxk_slip_stiffness(P, Fz: float, dfz: float, dpi: float, dT: float) -> float
     Kxk = (
         Fz
         * (P[c.PKX1] + P[c.PKX2] * dfz)
-        * math.exp(P[c.PKX3] * dfz)
+        * vm.exp(P[c.PKX3] * dfz)
         * (1.0 + P[c.PPX1] * dpi + P[c.PPX2] * dpi * dpi)
         * P[c.LKX]
     )
@@ -137,7 +136,7 @@ def Kya_cornering_stiffness(P, Fz: float, dpi: float, gamma: float, dT: float) -
         * (1.0 + P[c.PPY1] * dpi)
         * (1.0 + P[c.TTY1] * dT)
         * (1.0 - P[c.PKY3] * abs(gamma))
-        * math.sin(P[c.PKY4] * math.atan((Fz / Fz0p) / load_term))
+        * vm.sin(P[c.PKY4] * vm.atan((Fz / Fz0p) / load_term))
         * P[c.LKY]
     )
 
@@ -147,7 +146,7 @@ def Kyg0_camber_stiffness(P, Fz: float, dfz: float, dpi: float, is_mf52: bool) -
     """Camber stiffness Kyg0 (4.E30); MF 5.2: PHY3 Kya0 + Fz(PVY3 + PVY4 dfz) (MF-Tyre 5.2)."""
     if is_mf52:
         Fz0p = nominal_load(P)
-        Kya0 = P[c.PKY1] * Fz0p * math.sin(P[c.PKY4] * math.atan(Fz / (P[c.PKY2] * Fz0p)))
+        Kya0 = P[c.PKY1] * Fz0p * vm.sin(P[c.PKY4] * vm.atan(Fz / (P[c.PKY2] * Fz0p)))
         return (P[c.PHY3] * Kya0 + Fz * (P[c.PVY3] + P[c.PVY4] * dfz)) * P[c.LKYC]
     return Fz * (P[c.PKY6] + P[c.PKY7] * dfz) * (1.0 + P[c.PPY5] * dpi) * P[c.LKYC]
 
@@ -240,4 +239,4 @@ def SVyk_shift(P, Fz, kappa, alpha, gamma, dfz, muy, red_smooth) -> float:
         * (P[c.RVY1] + P[c.RVY2] * dfz + P[c.RVY3] * gamma)
         * cos_atan(P[c.RVY4] * alpha)
     )  # (4.E67), zeta2 = 1
-    return DVyk * math.sin(P[c.RVY5] * math.atan(P[c.RVY6] * kappa)) * P[c.LVYKA] * red_smooth
+    return DVyk * vm.sin(P[c.RVY5] * vm.atan(P[c.RVY6] * kappa)) * P[c.LVYKA] * red_smooth

@@ -1,9 +1,23 @@
-"""The one numba decorator every Magic Formula kernel uses, and its cache guard.
+"""The numba decorators of the Magic Formula kernels, and their cache guard.
 
+``kernel`` (an equation: scalars in, scalars out) is inlined into its caller at numba level
+(``inline="always"``), so that the sample loops of :mod:`.kernel` contain no calls and LLVM
+vectorises them; ``standalone`` is compiled on its own: the sample loops, and the vertical
+equations that the (unvectorised) loop of the full outputs calls.
 ``error_model="numpy"``: a division by zero gives inf/NaN like numpy instead of raising, so bad
-inputs cannot crash an evaluation. No fastmath: the oracle comparison needs IEEE arithmetic.
+inputs cannot crash an evaluation. No fastmath: the oracle comparison needs IEEE arithmetic
+(:mod:`.vmath` alone allows FMA contraction).
 ``cache=True``: compiled code is stored in ``__pycache__`` beside the sources and reused by
-later processes (first compile about 25 s of CPU, a cached load about 1 s).
+later processes.
+
+Two code-generation settings, for every numba function the process compiles afterwards:
+
+- LLVM interleaves a vectorised loop up to 4 times when its cost model likes it; on the long
+  bodies of these loops that makes the compile take minutes instead of seconds.
+  ``-force-vector-interleave=1`` stops that unrolling.
+- LLVM's tuning for AVX-512 Intel cores prefers 256-bit vectors; the stage loops are bound by
+  arithmetic and run about 1.4x faster on 512-bit ones, so ``-prefer-256-bit`` is switched off
+  (no effect on a CPU without AVX-512; a NUMBA_CPU_FEATURES set by the user is kept).
 
 numba keys a cached function on its own source file only: a kernel in ``kernel.py`` compiled
 with an older ``forces.py`` would be loaded stale after ``forces.py`` changed. The guard below
@@ -17,11 +31,12 @@ import hashlib
 import os
 from pathlib import Path
 
-from numba import njit
+import llvmlite.binding as llvm
+from numba import config, njit
 
 _HERE = Path(__file__).resolve().parent
 _SOURCES = ("jit.py", "coef.py", "conditions.py", "forces.py", "moments.py",
-            "vertical.py", "kernel.py")  # fmt: skip
+            "vertical.py", "kernel.py", "vmath.py")  # fmt: skip
 
 
 def _sources_digest() -> str:
@@ -57,5 +72,11 @@ def _guard_cache() -> None:
 
 
 _guard_cache()
+llvm.set_option("tire_model_ros", "-force-vector-interleave=1")
+if config.CPU_FEATURES is None:
+    config.CPU_FEATURES = llvm.get_host_cpu_features().flatten() + ",-prefer-256-bit"
 
-kernel = njit(cache=True, error_model="numpy")
+kernel = njit(cache=True, error_model="numpy", inline="always")
+standalone = njit(cache=True, error_model="numpy")
+vkernel = njit(cache=True, error_model="numpy", inline="always", fastmath={"contract"})
+"""The decorator of :mod:`.vmath`: ``kernel`` with FMA contraction allowed."""

@@ -1,7 +1,9 @@
-"""One evaluation of the Magic Formula per sample: the scalar kernel and its batch loop.
+"""The Magic Formula over arrays of samples: stage loops over blocks that LLVM vectorises.
 
-The same scalar code serves :meth:`TireModel.evaluate` (batch loop over samples) and
-:meth:`TireModel.evaluate_one` (one sample per ROS message). Output rows of the batch array:
+The equations are scalar kernels (:mod:`.forces`, :mod:`.moments`, :mod:`.conditions`), inlined
+into one loop per stage; a stage keeps what later stages need in a scratch block. The same
+code serves :meth:`TireModel.evaluate` (blocks of ``BLOCK`` samples) and
+:meth:`TireModel.evaluate_one` (a block of one, per ROS message). Output rows of the batch array:
 the first ``N_FORCES`` rows are always computed; the rest (radii, stiffnesses, relaxation
 lengths, used inputs) only when the output array has ``N_OUT`` rows.
 """
@@ -21,7 +23,7 @@ from .conditions import (
     temperature_increment,
 )
 from .forces import Fx0_pure, Fy0_pure, Gxa_weighting, Gyk_weighting, SVyk_shift
-from .jit import kernel
+from .jit import kernel, standalone
 from .moments import Mx_overturning, My_rolling_resistance, Mz_aligning
 from .vertical import contact_patch, deflection_61, deflection_62, relaxation, rolling_state
 
@@ -46,88 +48,141 @@ def is_mf52(P) -> bool:
     return P[c.FITTYP] == 6.0 or P[c.FITTYP] == 21.0
 
 
-@kernel
-def forces_point(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits):
-    """Forces and moments of one sample (turn slip not modelled).
+# Rows of the scratch block: what a stage passes on to later stages.
+# Rows 0..N_FORCES-1 hold the outputs (FX..MZR) until they are copied to the output array.
+(S_FZ, S_KAPPA, S_ALPHA, S_GAMMA, S_P, S_FZ_MZ, S_RED, S_DFZ, S_DPI, S_DT, S_COS_AP,
+ S_FX0, S_FY0, S_FY0_G0, S_SHY, S_SVY, S_BY, S_CY, S_SVYK,
+ S_FY_PRIME) = range(N_FORCES, N_FORCES + 20)  # fmt: skip
+N_SCRATCH = N_FORCES + 20
+BLOCK = 512  # samples per block: the scratch rows stay in the L1/L2 cache
 
-    Returns
-    -------
-    tuple
-        ``(Fx, Fy, Fz_out, Mx, My, Mz, Kxk, Kya, mux, muy, t, Mzr)`` followed by the
-        operating point used ``(Fz, kappa_low, alpha, gamma, p, dfz, dpi, uFz)``.
+
+@kernel
+def _conditions_stage(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, i0, n, s):
+    """Operating point and increments of samples i0..i0+n-1 (scratch column j = i - i0)."""
+    for j in range(n):
+        i = i0 + j
+        Fz_, kappa_, alpha_, gamma_, _, p_, uFz, _, Fz_low, red = operating_point(
+            P, Fz[i], kappa[i], alpha[i], gamma[i], Vx[i], p[i], phit[i], limits
+        )
+        Fz_mz = Fz_low if limits else Fz_
+        s[S_FZ, j] = Fz_
+        s[S_KAPPA, j] = kappa_
+        s[S_ALPHA, j] = alpha_
+        s[S_GAMMA, j] = gamma_
+        s[S_P, j] = p_
+        s[S_FZ_MZ, j] = 0.0 if Fz_ <= 0.0 else Fz_mz
+        s[S_RED, j] = red
+        s[S_DFZ, j] = load_increment(P, Fz_)
+        s[S_DPI, j] = pressure_increment(P, p_)
+        s[S_DT, j] = temperature_increment(P, T[i])
+        s[S_COS_AP, j] = cos_alpha_prime(alpha_, Vx[i])
+        s[FZ, j] = uFz
+
+
+@kernel
+def _longitudinal_stage(P, Vx, limits, i0, n, s):
+    """Pure-slip Fx0, mux, Kxk (4.E9)-(4.E18)."""
+    for j in range(n):
+        i = i0 + j
+        Fx0, mux, Kxk = Fx0_pure(P, s[S_FZ, j], s[S_KAPPA, j], s[S_GAMMA, j], Vx[i], s[S_DFZ, j],
+                                 s[S_DPI, j], s[S_DT, j], s[S_RED, j], limits)  # fmt: skip
+        s[S_FX0, j] = Fx0
+        s[MUX, j] = mux
+        s[KXK, j] = Kxk
+
+
+@kernel
+def _lateral_stage(P, limits, mf52, n, s):
+    """Pure-slip Fy0, muy, Kya and the shifts (4.E19)-(4.E30)."""
+    for j in range(n):
+        Fy0, muy, Kya, SHy, SVy, By, Cy = Fy0_pure(
+            P, s[S_FZ, j], s[S_ALPHA, j], s[S_GAMMA, j], s[S_DFZ, j], s[S_DPI, j], s[S_DT, j],
+            s[S_RED, j], limits, mf52,
+        )  # fmt: skip
+        s[S_FY0, j] = Fy0
+        s[S_SHY, j] = SHy
+        s[S_SVY, j] = SVy
+        s[S_BY, j] = By
+        s[S_CY, j] = Cy
+        s[MUY, j] = muy
+        s[KYA, j] = Kya
+
+
+@kernel
+def _lateral_zero_camber_stage(P, limits, mf52, n, s):
+    """Fy0 at zero camber (and no turn slip), for Fy' of (4.E74)."""
+    for j in range(n):
+        s[S_FY0_G0, j] = Fy0_pure(
+            P, s[S_FZ, j], s[S_ALPHA, j], 0.0, s[S_DFZ, j], s[S_DPI, j], s[S_DT, j],
+            s[S_RED, j], limits, mf52,
+        )[0]  # fmt: skip
+
+
+@kernel
+def _combined_stage(P, limits, n, s):
+    """Combined-slip Fx (4.E50) and Fy (4.E58), and Fy' (Gyk keeps the camber, as MFeval)."""
+    for j in range(n):
+        kappa_, alpha_, gamma_, dfz = s[S_KAPPA, j], s[S_ALPHA, j], s[S_GAMMA, j], s[S_DFZ, j]
+        Gyk = Gyk_weighting(P, kappa_, alpha_, gamma_, dfz, limits)
+        SVyk = SVyk_shift(P, s[S_FZ, j], kappa_, alpha_, gamma_, dfz, s[MUY, j], s[S_RED, j])
+        s[FX, j] = Gxa_weighting(P, kappa_, alpha_, gamma_, dfz, limits) * s[S_FX0, j]
+        s[FY, j] = Gyk * s[S_FY0, j] + SVyk
+        s[S_SVYK, j] = SVyk
+        s[S_FY_PRIME, j] = Gyk * s[S_FY0_G0, j]
+
+
+@kernel
+def _aligning_stage(P, Vx, limits, mf52, i0, n, s):
+    """Aligning torque Mz, trail t and residual torque Mzr (4.E71)-(4.E78)."""
+    for j in range(n):
+        i = i0 + j
+        Mz, t, Mzr = Mz_aligning(
+            P, s[S_FZ_MZ, j], s[S_DFZ, j], s[S_DPI, j], s[S_KAPPA, j], s[S_ALPHA, j],
+            s[S_GAMMA, j], Vx[i], s[S_COS_AP, j], limits, mf52, s[KXK, j], s[KYA, j],
+            s[S_SHY, j], s[S_SVY, j], s[S_BY, j], s[S_CY, j], s[FX, j], s[FY, j],
+            s[S_SVYK, j], s[S_FY_PRIME, j], s[S_RED, j],
+        )  # fmt: skip
+        s[MZ, j] = Mz
+        s[T_TRAIL, j] = t
+        s[MZR, j] = Mzr
+
+
+@kernel
+def _moments_stage(P, kappa, Vx, mf52, i0, n, s):
+    """Overturning couple Mx and rolling resistance My."""
+    for j in range(n):
+        i = i0 + j
+        gamma_ = s[S_GAMMA, j]
+        s[MX, j] = Mx_overturning(P, s[S_FZ, j], gamma_, s[S_DPI, j], s[FY, j])
+        s[MY, j] = My_rolling_resistance(P, s[FZ, j], kappa[i], gamma_, Vx[i], s[S_P, j],
+                                         s[FX, j], mf52)  # fmt: skip
+
+
+@standalone
+def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out):
+    """Rows 0..N_FORCES-1 of ``out`` for every sample, block by block, stage by stage.
+
+    Each stage is one loop over a block that LLVM vectorises: the stages are inlined here,
+    so the scratch block has a constant shape and LLVM sees that its rows do not overlap.
+    ``limits`` is a compile-time constant (one specialisation for useMode 111, one for 211).
     """
     mf52 = is_mf52(P)
-    Fz_, kappa_, alpha_, gamma_, _, p_, uFz, kappa_low, Fz_low, red = operating_point(
-        P, Fz, kappa, alpha, gamma, Vx, p, phit, limits
-    )
-    dfz = load_increment(P, Fz_)
-    dpi = pressure_increment(P, p_)
-    dT = temperature_increment(P, T)
-    cos_alpha_p = cos_alpha_prime(alpha_, Vx)
-
-    Fx0, mux, Kxk = Fx0_pure(P, Fz_, kappa_, gamma_, Vx, dfz, dpi, dT, red, limits)
-    Fy0, muy, Kya, SHy, SVy, By, Cy = Fy0_pure(
-        P, Fz_, alpha_, gamma_, dfz, dpi, dT, red, limits, mf52
-    )
-    Fx = Gxa_weighting(P, kappa_, alpha_, gamma_, dfz, limits) * Fx0  # (4.E50)
-    Gyk = Gyk_weighting(P, kappa_, alpha_, gamma_, dfz, limits)
-    SVyk = SVyk_shift(P, Fz_, kappa_, alpha_, gamma_, dfz, muy, red)
-    Fy = Gyk * Fy0 + SVyk  # (4.E58)
-
-    # Fy' of (4.E74): Fy0 at zero camber (and no turn slip) times Gyk (MFeval keeps the
-    # camber in Gyk here)
-    if gamma_ == 0.0:
-        Fy_prime = Gyk * Fy0
-    else:
-        Fy_prime = Gyk * Fy0_pure(P, Fz_, alpha_, 0.0, dfz, dpi, dT, red, limits, mf52)[0]
-    Fz_mz = Fz_low if limits else Fz_
-    if Fz_ <= 0.0:
-        Fz_mz = 0.0
-    Mz, t, Mzr = Mz_aligning(
-        P, Fz_mz, dfz, dpi, kappa_, alpha_, gamma_, Vx, cos_alpha_p, limits, mf52,
-        Kxk, Kya, SHy, SVy, By, Cy, Fx, Fy, SVyk, Fy_prime, red,
-    )  # fmt: skip
-    Mx = Mx_overturning(P, Fz_, gamma_, dpi, Fy)
-    My = My_rolling_resistance(P, uFz, kappa, gamma_, Vx, p_, Fx, mf52)
-    return (
-        (Fx, Fy, uFz, Mx, My, Mz, Kxk, Kya, mux, muy, t, Mzr),
-        (Fz_, kappa_low, alpha_, gamma_, p_, dfz, dpi, uFz, Fz_low),
-    )
+    s = np.empty((N_SCRATCH, BLOCK))
+    for i0 in range(0, Fz.shape[0], BLOCK):
+        n = min(BLOCK, Fz.shape[0] - i0)
+        _conditions_stage(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, i0, n, s)
+        _longitudinal_stage(P, Vx, limits, i0, n, s)
+        _lateral_stage(P, limits, mf52, n, s)
+        _lateral_zero_camber_stage(P, limits, mf52, n, s)
+        _combined_stage(P, limits, n, s)
+        _aligning_stage(P, Vx, limits, mf52, i0, n, s)
+        _moments_stage(P, kappa, Vx, mf52, i0, n, s)
+        for k in range(N_FORCES):
+            out[k, i0 : i0 + n] = s[k, :n]
 
 
-@kernel
-def _forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out):
-    """Rows 0..N_FORCES-1 of ``out`` for every sample (``limits`` a compile-time constant)."""
-    for i in range(Fz.shape[0]):
-        res = forces_point(P, Fz[i], kappa[i], alpha[i], gamma[i], Vx[i], p[i], T[i], phit[i],
-                           limits)[0]  # fmt: skip
-        out[FX, i] = res[0]
-        out[FY, i] = res[1]
-        out[FZ, i] = res[2]
-        out[MX, i] = res[3]
-        out[MY, i] = res[4]
-        out[MZ, i] = res[5]
-        out[KXK, i] = res[6]
-        out[KYA, i] = res[7]
-        out[MUX, i] = res[8]
-        out[MUY, i] = res[9]
-        out[T_TRAIL, i] = res[10]
-        out[MZR, i] = res[11]
-
-
-@kernel
-def forces_loop_limits(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, out):
-    """Forces and moments with the limits on (MFeval useMode 111)."""
-    _forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, True, out)
-
-
-@kernel
-def forces_loop_plain(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, out):
-    """Forces and moments of the plain equations (MFeval useMode 211)."""
-    _forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, False, out)
-
-
-@kernel
+@standalone
 def extras_loop(P, Fz, kappa, alpha, gamma, Vx, p, phit, omega, limits, out):
     """Rows N_FORCES.. of ``out``: radii, deflection, stiffnesses, relaxation, used inputs.
 
@@ -171,17 +226,20 @@ def evaluate_batch(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, limits, ou
 
     ``out`` has ``N_FORCES`` rows (forces and moments only) or ``N_OUT`` rows (everything).
     """
-    loop = forces_loop_limits if limits else forces_loop_plain
-    loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, out)
+    forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, bool(limits), out)
     if out.shape[0] >= N_OUT:
         extras_loop(P, Fz, kappa, alpha, gamma, Vx, p, phit, omega, bool(limits), out)
 
 
-@kernel
+@standalone
 def evaluate_point(P, Fz, kappa, alpha, gamma, Vx, p, T, limits):
-    """(Fx, Fy, Fz, Mx, My, Mz) of one sample: the per-message path of the node."""
-    res = forces_point(P, Fz, kappa, alpha, gamma, Vx, p, T, 0.0, limits)[0]
-    return res[0], res[1], res[2], res[3], res[4], res[5]
+    """(Fx, Fy, Fz, Mx, My, Mz) of one sample: the batch stages on a block of one."""
+    x = np.empty((8, 1))  # rows: the batch inputs, phit = 0
+    for k, v in enumerate((Fz, kappa, alpha, gamma, Vx, p, T, 0.0)):
+        x[k, 0] = v
+    out = np.empty((N_FORCES, 1))
+    forces_loop(P, x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], limits, out)
+    return out[FX, 0], out[FY, 0], out[FZ, 0], out[MX, 0], out[MY, 0], out[MZ, 0]
 
 
 def warm_up() -> None:

@@ -11,7 +11,9 @@ from __future__ import annotations
 import math
 
 from . import coef as c
+from . import vmath as vm
 from .conditions import EPS, cos_atan, nominal_load, sign0, sign1
+from .forces import weighting
 from .jit import kernel
 
 
@@ -20,7 +22,7 @@ def low_load_reduction(P, Fz: float, power: float) -> float:
     """Load below FZMIN faded out as Fz (Fz/FZMIN)^power (MFeval, empirical TNO choice)."""
     FZMIN = P[c.FZMIN]
     if FZMIN > 0.0 and Fz < FZMIN:
-        return Fz * (Fz / FZMIN) ** power
+        return Fz * vm.pow(Fz / FZMIN, power)
     return Fz
 
 
@@ -35,9 +37,9 @@ def Mx_overturning(P, Fz: float, gamma: float, dpi: float, Fy: float) -> float:
         - P[c.QSX2] * gamma * (1.0 + P[c.PPMX1] * dpi)
         + P[c.QSX3] * (Fy / Fz0)
         + P[c.QSX4]
-        * math.cos(P[c.QSX5] * math.atan((P[c.QSX6] * Fz / Fz0) ** 2))
-        * math.sin(P[c.QSX7] * gamma + P[c.QSX8] * math.atan(P[c.QSX9] * Fy / Fz0))
-        + P[c.QSX10] * math.atan(P[c.QSX11] * Fz / Fz0) * gamma
+        * vm.cos(P[c.QSX5] * vm.atan((P[c.QSX6] * Fz / Fz0) * (P[c.QSX6] * Fz / Fz0)))
+        * vm.sin(P[c.QSX7] * gamma + P[c.QSX8] * vm.atan(P[c.QSX9] * Fy / Fz0))
+        + P[c.QSX10] * vm.atan(P[c.QSX11] * Fz / Fz0) * gamma
     ) + R0 * P[c.LMX] * (
         Fy * (P[c.QSX13] + P[c.QSX14] * abs(gamma)) - Fz * P[c.QSX12] * gamma * abs(gamma)
     )
@@ -66,7 +68,7 @@ def My_rolling_resistance(P, uFz, kappa_raw, gamma, Vx, p, Fx, is_mf52) -> float
             * Fz0
             * P[c.LMY]
             * (speed_terms + (P[c.QSY5] + P[c.QSY6] * (Fz / Fz0)) * gamma * gamma)
-            * ((Fz / Fz0) ** P[c.QSY7] * (p / P[c.NOMPRES]) ** P[c.QSY8])
+            * (vm.pow(Fz / Fz0, P[c.QSY7]) * vm.pow(p / P[c.NOMPRES], P[c.QSY8]))
         )
     if Vx == 0.0:
         return 0.0
@@ -76,7 +78,7 @@ def My_rolling_resistance(P, uFz, kappa_raw, gamma, Vx, p, Fx, is_mf52) -> float
     low = -1.0 - P[c.VXLOW] - high
     if low <= kappa_raw <= high:
         # sin ramp from 0 at kappa = -1 (wheel locked) to 1 at kappa = high
-        My = My * math.sin(0.5 * math.pi * (kappa_raw + 1.0) / (high + 1.0))
+        My = My * vm.sin(0.5 * math.pi * (kappa_raw + 1.0) / (high + 1.0))
     elif kappa_raw < low:
         My = -My
     return My
@@ -110,7 +112,7 @@ def Dt_trail_peak(P, Fz: float, dfz: float, dpi: float, gamma: float) -> float:
 def Et_trail_curvature(P, dfz, gamma, Bt, Ct, alphat, limits) -> float:
     """Pneumatic-trail curvature factor Et (4.E44), clipped at 1 with the limits on."""
     Et = (P[c.QEZ1] + P[c.QEZ2] * dfz + P[c.QEZ3] * dfz * dfz) * (
-        1.0 + (P[c.QEZ4] + P[c.QEZ5] * gamma) * (2.0 / math.pi) * math.atan(Bt * Ct * alphat)
+        1.0 + (P[c.QEZ4] + P[c.QEZ5] * gamma) * (2.0 / math.pi) * vm.atan(Bt * Ct * alphat)
     )
     if limits and Et > 1.0:
         return 1.0
@@ -134,7 +136,7 @@ def Dr_residual_peak(P, Fz: float, dfz: float, dpi: float, gamma: float, alpha, 
         )
         * P[c.LMUY]
         * sign0(Vx)
-        * math.cos(alpha)
+        * vm.cos(alpha)
     )
 
 
@@ -142,8 +144,8 @@ def Dr_residual_peak(P, Fz: float, dfz: float, dpi: float, gamma: float, alpha, 
 def equivalent_slip_angle(alpha_x: float, Kxk: float, Kya_prime: float, kappa: float) -> float:
     """Combined-slip equivalent angle (A54), (A55) (the book's 4.E77, 4.E78 in tan form)."""
     ratio = Kxk / Kya_prime * kappa
-    tan_a = math.tan(alpha_x)
-    return math.atan(math.sqrt(tan_a * tan_a + ratio * ratio)) * sign0(alpha_x)
+    tan_a = vm.tan(alpha_x)
+    return vm.atan(math.sqrt(tan_a * tan_a + ratio * ratio)) * sign0(alpha_x)
 
 
 @kernel
@@ -180,8 +182,7 @@ def Mz_aligning(
         * P[c.LS]
     )  # (A56)
     Mzr = Dr * cos_atan(Br * alphar_eq)  # (4.E75), Cr = 1
-    Bta = Bt * alphat_eq
-    t = Dt * math.cos(Ct * math.atan(Bta - Et * (Bta - math.atan(Bta)))) * cos_alpha_p
+    t = Dt * weighting(Bt, Ct, Et, alphat_eq) * cos_alpha_p
     t = t * P[c.LFZO]  # (4.E73); the LFZO factor is TNO's (MFeval note)
     t = t * red_smooth
     Mzr = Mzr * red_smooth

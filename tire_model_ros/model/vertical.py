@@ -10,16 +10,16 @@ from __future__ import annotations
 import math
 
 from . import coef as c
-from .jit import kernel
+from .jit import standalone
 
 
-@kernel
+@standalone
 def Cz_vertical_stiffness(P, dpi: float) -> float:
     """Vertical stiffness at the inflation pressure, Cz0 (1 + PFZ1 dpi) (paper eq. 5) [N/m]."""
     return P[c.VERTICAL_STIFFNESS] * (1.0 + P[c.PFZ1] * dpi)
 
 
-@kernel
+@standalone
 def Romega_free_radius(P, omega: float) -> float:
     """Free-rolling radius with centrifugal growth R0 (Q_RE0 + Q_V1 (omega R0/V0)^2) (eq. 1) [m]."""
     R0 = P[c.UNLOADED_RADIUS]
@@ -27,7 +27,7 @@ def Romega_free_radius(P, omega: float) -> float:
     return R0 * (P[c.Q_RE0] + P[c.Q_V1] * w * w)
 
 
-@kernel
+@standalone
 def Re_effective_radius(P, omega: float, Fz: float, dpi: float) -> float:
     """Effective rolling radius Re (eq. 7) [m]."""
     Fz0 = P[c.FNOMIN]
@@ -36,7 +36,7 @@ def Re_effective_radius(P, omega: float, Fz: float, dpi: float) -> float:
     )
 
 
-@kernel
+@standalone
 def rolling_state(P, uFz, kappa_raw, Vx, dpi, omega_in):
     """Wheel speed and effective rolling radius.
 
@@ -60,14 +60,14 @@ def rolling_state(P, uFz, kappa_raw, Vx, dpi, omega_in):
     return Re, Romega_free_radius(P, omega), omega
 
 
-@kernel
+@standalone
 def Q_FZ1_linear(P) -> float:
     """Linear load-deflection coefficient from Cz0: Q_FZ1 = sqrt((Cz0 R0/Fz0)^2 - 4 Q_FZ2)."""
     a = P[c.VERTICAL_STIFFNESS] * P[c.UNLOADED_RADIUS] / P[c.FNOMIN]
     return math.sqrt(max(a * a - 4.0 * P[c.Q_FZ2], 0.0))
 
 
-@kernel
+@standalone
 def deflection_61(P, Fz, dpi, omega, Romega, Fx, Fy):
     """Deflection rho and loaded radius Rl from the MF 6.1 vertical force (eq. 4, inverted).
 
@@ -101,7 +101,7 @@ def deflection_61(P, Fz, dpi, omega, Romega, Fx, Fy):
     return rho, Rl, Fz / rho
 
 
-@kernel
+@standalone
 def Fz_62(P, Rl, gamma, omega, Romega, dpi, Fx, Fy):
     """MF 6.2 vertical force at loaded radius Rl (MF-Swift 6.2 manual) and its deflection."""
     R0 = P[c.UNLOADED_RADIUS]
@@ -130,7 +130,7 @@ def Fz_62(P, Rl, gamma, omega, Romega, dpi, Fx, Fy):
     return fcorr * (Q_FZ1_linear(P) * x + P[c.Q_FZ2] * x * x) * Fz0, rho_z
 
 
-@kernel
+@standalone
 def deflection_62(P, uFz, Fz, gamma, dpi, omega, Romega, Fx, Fy):
     """Loaded radius of MF 6.2 by secant iteration on Fz_62(Rl) = uFz.
 
@@ -162,7 +162,7 @@ def deflection_62(P, uFz, Fz, gamma, dpi, omega, Romega, Fx, Fy):
     return rho, x, Fz / rho
 
 
-@kernel
+@standalone
 def contact_patch(P, uFz: float, dpi: float, is_mf52: bool):
     """Contact patch length 2a and width 2b (paper eqs. 9, 10; MF 5.2: Q_A1, Q_A2) [m]."""
     R0 = P[c.UNLOADED_RADIUS]
@@ -187,7 +187,7 @@ def contact_patch(P, uFz: float, dpi: float, is_mf52: bool):
     return 2.0 * a, 2.0 * b
 
 
-@kernel
+@standalone
 def relaxation(P, Fz, dfz, dpi, gamma, Kxk, Kya, is_mf52):
     """Carcass stiffnesses Cx, Cy (paper eqs. 17, 18) and relaxation lengths (eq. 19).
 
