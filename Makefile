@@ -15,6 +15,8 @@ $(STAMP): requirements.lock setup.py setup.cfg package.xml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check -r requirements.lock
 	$(PY) -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
+	@echo "compiling the Magic Formula kernels into the numba cache (once per install)"
+	$(PY) -c "from tire_model_ros.model.kernel import warm_up; warm_up()"
 	touch $(STAMP)
 
 test: venv
