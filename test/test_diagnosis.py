@@ -208,3 +208,28 @@ def test_cli_reports_a_missing_bag_clearly(tmp_path):
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
     assert res.returncode == 1
     assert "nope" in res.stderr
+
+
+def test_rare_sweeps_are_stratified_over_all_folds():
+    """Each kind with three or more rare sweeps gives one at an interior condition to the
+    final held-out fold (the kinds at different conditions); the pieces of one sweep stay
+    together; a kind with two rare sweeps keeps both for the selection folds."""
+    from tire_model_ros.diagnosis.core import _rare_folds
+
+    levels = [(-4, 0), (2, 0), (4, 0), (-2, 0)]  # four pressures, not in monotone order
+    rare: list = [None]
+    for lv in levels:
+        rare += [("y", lv), ("y", lv), None, ("x", lv), None]  # a lateral sweep in two pieces
+    rare += [("y", (0, 4)), None, ("y", (0, 8))]  # two camber sweeps
+    folds = _rare_folds(rare, np.random.default_rng(0))
+    assert set(folds) == {j for j, r in enumerate(rare) if r is not None}
+    held = {rare[j] for j, f in folds.items() if f == 2}
+    assert {k for k, _ in held} == {"x", "y"} and len(held) == 2
+    assert {lv for _, lv in held} == {(-2, 0), (2, 0)}  # interior levels, one per kind
+    for j, r in enumerate(rare[:-1]):
+        if r is not None and rare[j + 1] == r:
+            assert folds[j] == folds[j + 1]  # pieces of one sweep share a fold
+    for kind in ("x", "y"):
+        sel_folds = [f for j, f in sorted(folds.items()) if rare[j][0] == kind and f != 2]
+        assert {0, 1} <= set(sel_folds)
+    assert {folds[len(rare) - 3], folds[len(rare) - 1]} == {0, 1}  # camber: both selected
