@@ -30,6 +30,9 @@ FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows ar
 MIN_SEGMENTS = 6
 INPUT_SMOOTH_S = 0.09  # window of the zero-phase input smoother [s]
 ZERO_ALPHA = np.radians(1.0)  # |alpha| below this (and |kappa| < 0.01) counts as zero slip
+# Rare sweeps each selection fold keeps before one goes to the final held-out fold: the MF
+# pressure terms are quadratic (two per side), a fit needs two levels off nominal.
+MIN_RARE_PER_FOLD = 2
 REST_KAPPA, REST_ALPHA = 0.002, np.radians(0.2)  # slip at rest: where an offset is read
 # Share of a combined-slip candidate's held-out improvement that must come from the samples
 # where both slips are non-zero (the only place its terms act).
@@ -273,42 +276,45 @@ def _rare_folds(rare: list[tuple[str, tuple] | None], rng: np.random.Generator) 
     """Fold of each rare block (index into ``rare``: its (kind, condition) or None).
 
     A rare sweep is a run of blocks of one kind at one condition (the pieces of one long sweep
-    stay together); a stratum is a kind of sweep and the conditions it varies (pressure,
-    camber). Of a stratum with at least three rare sweeps, one at an interior condition
-    (neither extreme: the held-out test interpolates, as the fit does) goes to the final
-    held-out fold, the kinds taking different conditions, so the final figures test the
-    effect where it acts; the others alternate between the two selection folds, so that
-    every selection fit sees one and predicts another.
+    stay together). Rare sweeps alternate, per kind, between the two selection folds, so
+    that every selection fit sees one and predicts another. A stratum (a kind and the
+    conditions it varies: pressure, camber) with enough rare sweeps that each selection fold
+    keeps MIN_RARE_PER_FOLD of them also gives one, at an interior condition (the held-out
+    test interpolates, as the fit does; the kinds at different conditions), to the final
+    held-out fold, so the final figures test the effect where it acts.
     """
-    strata: dict[tuple, list[tuple[tuple, list[int]]]] = {}
-    last: dict[str, tuple] = {}  # kind -> condition of its latest rare block
+    runs: list[tuple[str, tuple, list[int]]] = []
+    last: dict[str, int] = {}  # kind -> its latest run
     for j, r in enumerate(rare):
         if r is None:
             continue
         kind, cond = r
-        runs = strata.setdefault((kind, tuple(i for i, v in enumerate(cond) if v)), [])
-        if last.get(kind) == cond and runs and runs[-1][0] == cond:
-            runs[-1][1].append(j)
-        else:
-            runs.append((cond, [j]))
-        last[kind] = cond
-    out: dict[int, int] = {}
+        if kind in last and runs[last[kind]][1] == cond:
+            runs[last[kind]][2].append(j)
+            continue
+        last[kind] = len(runs)
+        runs.append((kind, cond, [j]))
+    strata: dict[tuple, list[int]] = {}
+    for k, (kind, cond, _) in enumerate(runs):
+        strata.setdefault((kind, tuple(i for i, v in enumerate(cond) if v)), []).append(k)
+    held: set[int] = set()
     taken: set[tuple] = set()
     for key in sorted(strata):
-        runs = strata[key]
-        levels = sorted({cond for cond, _ in runs})[1:-1]
+        ks = strata[key]
+        levels = sorted({runs[k][1] for k in ks})[1:-1]
         free = [c for c in levels if c not in taken] or levels
-        held = None
-        if len(runs) >= 3 and free:
-            held = next(k for k, (cond, _) in enumerate(runs) if cond == free[0])
+        if len(ks) >= 2 * MIN_RARE_PER_FOLD + 1 and free:
+            held.add(next(k for k in ks if runs[k][1] == free[0]))
             taken.add(free[0])
-        f = int(rng.integers(2))
-        for k, (_, js) in enumerate(runs):
-            if k == held:
-                out.update(dict.fromkeys(js, 2))
-                continue
-            out.update(dict.fromkeys(js, f))
-            f = 1 - f
+    out: dict[int, int] = {}
+    turn: dict[str, int] = {}
+    for k, (kind, _, js) in enumerate(runs):
+        f = turn.setdefault(kind, int(rng.integers(2)))
+        if k in held:
+            out.update(dict.fromkeys(js, 2))
+            continue
+        out.update(dict.fromkeys(js, f))
+        turn[kind] = 1 - f
     return out
 
 
