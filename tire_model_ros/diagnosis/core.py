@@ -701,14 +701,14 @@ def _constant_offset(tr, ctx, cur, splits, log) -> sel.Trial | None:
     must then show where it is defined (near zero slip), and an offset that may change at
     mid-session (the drift control) must not predict held-out sweeps clearly better.
     """
-    bad = _inconstant_channels(tr, ctx, splits, log)
+    bad = _inconstant_channels(tr, ctx, cur[0], splits, log)
     if bad:
         keep = [ch for ch in ctx.channels if ch not in bad]
         if not keep:
             return None
         c = cd.Offset(ctx, channels=keep)
         tr = _trial(c, [c], ctx, splits, cur, log, "offset")
-        if not sel.passes(tr) or _inconstant_channels(tr, ctx, splits, log):
+        if not sel.passes(tr) or _inconstant_channels(tr, ctx, cur[0], splits, log):
             log.append(f"offset rejected: {c.label} does not pass on its own")
             return None
     if not _offset_at_zero_slip(tr, ctx, cur[0], splits, log):
@@ -725,27 +725,34 @@ def _constant_offset(tr, ctx, cur, splits, log) -> sel.Trial | None:
         )
         return None
     tr.reason = (
-        "constant over the session: early and late, cold and hot sweeps agree at zero slip, "
+        "constant: read at rest, both folds' sweeps, early and late, cold and hot ones agree, "
         f"and '{drifting.label}' predicts no better ({sc.rms:.3f} vs {tr.heldout.rms:.3f} "
         "held-out RMS, noise units)"
     )
     return tr
 
 
-def _inconstant_channels(tr, ctx, splits, log) -> set[str]:
+def _inconstant_channels(tr, ctx, cur_fits, splits, log) -> set[str]:
     """Channels whose offset is not a constant at zero slip (PHYSICS.md).
 
-    Per held-out training sweep, the mean residual at rest in slip of the model with the
-    offset is the offset that sweep alone would want on top. Its means over the early and the
-    late sweeps (and, when the model has a temperature, over the cold and the hot ones) must
-    agree within two standard errors (sweeps are the units: rows are autocorrelated): an
-    offset does not follow the session or the heating. (Its mean itself need not be zero: the
-    offset is fitted on all slips, beside other effects' misfit.)
+    Sweeps are the units (rows are autocorrelated); "agree" is within two standard errors.
+
+    - Read at rest in slip on the held-out sweeps of each selection fold, with the current
+      model (without the offset) fitted on the other fold, the offset is the same: it is a
+      property of the session, not of how the other effects were fitted.
+    - Per held-out sweep, the mean residual at rest of the model with the offset is the
+      offset that sweep alone would want on top. Its means over the early and the late sweeps
+      (and, when the model has a temperature, over the cold and the hot ones) agree: an
+      offset does not follow the session or the heating.
     """
     bad: set[str] = set()
-    for (_, test), f in zip(splits, tr.fits, strict=True):
+    read: dict[tuple[int, str], list[tuple[float, float]]] = {
+        (wi, ch): [] for wi in range(len(ctx.wheels)) for ch in tr.component.channels
+    }
+    for (_, test), f, f0 in zip(splits, tr.fits, cur_fits, strict=True):
         for wi, (w, r) in enumerate(zip(ctx.wheels, test, strict=True)):
             out = cd.predict(f.components, f.x, ctx, wi, np.arange(w.n))
+            out0 = cd.predict(f0.components, f0.x, ctx, wi, np.arange(w.n))
             inp = dict(w.inputs)
             for c, xc in zip(f.components, cd.split_x(f.components, f.x), strict=True):
                 c.inputs(xc, ctx, w, inp)
@@ -763,6 +770,8 @@ def _inconstant_channels(tr, ctx, splits, log) -> set[str]:
                 keep = [idx[np.isfinite(e[idx])] for idx in sweeps]
                 keep = [idx for idx in keep if len(idx) >= 5]
                 off = np.array([np.mean(e[idx]) for idx in keep])
+                e0 = w.meas[ch] - out0[ch]
+                read[(wi, ch)].append(_mean_se(np.array([np.mean(e0[idx]) for idx in keep])))
                 for label, x in states.items():
                     d, z = _split_difference(off, np.array([np.mean(x[idx]) for idx in keep]))
                     if z > sel.MIN_T_ALT:
@@ -771,7 +780,25 @@ def _inconstant_channels(tr, ctx, splits, log) -> set[str]:
                             f"by {label} ({d:+.1f} N, {z:.1f} standard errors)"
                         )
                         bad.add(ch)
+    for (wi, ch), ms in read.items():
+        if len(ms) == 2 and all(math.isfinite(se) for _, se in ms):
+            (m0, s0), (m1, s1) = ms
+            z = abs(m1 - m0) / max(math.hypot(s0, s1), 1e-9)
+            if z > sel.MIN_T_ALT:
+                log.append(
+                    f"offset on {ch} rejected: {ctx.wheels[wi].prefix} read at rest without it, "
+                    f"the two folds' sweeps disagree ({m0:+.1f} vs {m1:+.1f} N, {z:.1f} "
+                    "standard errors): it depends on how the other effects were fitted"
+                )
+                bad.add(ch)
     return bad
+
+
+def _mean_se(y: np.ndarray) -> tuple[float, float]:
+    """Mean and its standard error (NaN with fewer than two values)."""
+    if len(y) < 2:
+        return float("nan"), float("nan")
+    return float(np.mean(y)), float(np.std(y, ddof=1) / math.sqrt(len(y)))
 
 
 def _split_difference(y: np.ndarray, level: np.ndarray) -> tuple[float, float]:
