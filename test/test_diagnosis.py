@@ -156,6 +156,21 @@ def test_friction_step_is_named_drift_and_located(model):
         diag.score_reference(short)
 
 
+def test_offset_is_named_constant_and_sized(model):
+    """A ply-steer offset (3 % of Fz at alpha = 0) passes the constancy guards and is sized."""
+    wheels, _ = _session(model, {"offset": True})
+    diag = diagnose(wheels, model, seed=0)
+    first = diag.effects[0]
+    assert first.name == "offset", diag.details["log"]
+    assert "constant" in first.evidence
+    FN = model.params["FNOMIN"]
+    Fz = float(np.median(wheels[0].Fz))
+    Fy_at_rest = (
+        first.parameters["offset_Fy_0"] + first.parameters.get("offsetperFz_Fy_0", 0.0) * Fz / FN
+    )
+    assert abs(Fy_at_rest) == pytest.approx(0.03 * Fz, rel=0.2)
+
+
 def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
     """Noise only: 'none', nothing invented; JSON/report/improved .tir written atomically;
     scores against the noise-free twin (--reference) far below the raw ones."""
