@@ -156,6 +156,21 @@ def test_friction_step_is_named_drift_and_located(model):
         diag.score_reference(short)
 
 
+def test_offset_is_named_constant_and_sized(model):
+    """A ply-steer offset (3 % of Fz at alpha = 0) passes the constancy guards and is sized."""
+    wheels, _ = _session(model, {"offset": True})
+    diag = diagnose(wheels, model, seed=0)
+    first = diag.effects[0]
+    assert first.name == "offset", diag.details["log"]
+    assert "constant" in first.evidence
+    FN = model.params["FNOMIN"]
+    Fz = float(np.median(wheels[0].Fz))
+    Fy_at_rest = (
+        first.parameters["offset_Fy_0"] + first.parameters.get("offsetperFz_Fy_0", 0.0) * Fz / FN
+    )
+    assert abs(Fy_at_rest) == pytest.approx(0.03 * Fz, rel=0.2)
+
+
 def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
     """Noise only: 'none', nothing invented; JSON/report/improved .tir written atomically;
     scores against the noise-free twin (--reference) far below the raw ones."""
@@ -208,3 +223,32 @@ def test_cli_reports_a_missing_bag_clearly(tmp_path):
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
     assert res.returncode == 1
     assert "nope" in res.stderr
+
+
+def test_rare_sweeps_are_stratified_over_all_folds():
+    """A stratum with enough rare sweeps (two left per selection fold) gives one at an
+    interior condition to the final held-out fold, the kinds at different conditions; the
+    pieces of one sweep stay together; a smaller stratum stays in the selection folds."""
+    from tire_model_ros.diagnosis.core import _rare_folds
+
+    levels = [(-4, 0), (2, 0), (4, 0), (-2, 0), (-6, 0), (6, 0)]  # pressures, not monotone
+    rare: list = [None]
+    for lv in levels:
+        rare += [("y", lv), ("y", lv), None, ("x", lv), None]  # a lateral sweep in two pieces
+    rare += [("y", (0, 4)), None, ("y", (0, 8))]  # two camber sweeps
+    folds = _rare_folds(rare, np.random.default_rng(0))
+    assert set(folds) == {j for j, r in enumerate(rare) if r is not None}
+    held = {rare[j] for j, f in folds.items() if f == 2}
+    assert {k for k, _ in held} == {"x", "y"} and len(held) == 2
+    assert {lv for _, lv in held} <= {(-4, 0), (-2, 0), (2, 0), (4, 0)}  # interior levels
+    assert len({lv for _, lv in held}) == 2
+    for j, r in enumerate(rare[:-1]):
+        if r is not None and rare[j + 1] == r:
+            assert folds[j] == folds[j + 1]  # pieces of one sweep share a fold
+    for kind in ("x", "y"):
+        sel_folds = [f for j, f in folds.items() if rare[j][0] == kind and f != 2]
+        assert sel_folds.count(0) >= 2 and sel_folds.count(1) >= 2
+    assert {folds[len(rare) - 3], folds[len(rare) - 1]} == {0, 1}  # camber: both selected
+    # Four pressures, one sweep of each kind at each: too few to hold one out.
+    four = [r for r in rare[: 1 + 5 * 4]]
+    assert 2 not in _rare_folds(four, np.random.default_rng(0)).values()

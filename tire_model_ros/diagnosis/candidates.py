@@ -17,6 +17,7 @@ parameters have bounds and a typical scale (``x_scale`` for the optimiser).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -362,27 +363,32 @@ class Delay(Component):
 
 class Offset(Component):
     """Force offsets per wheel and channel: a constant (load-cell zero) and a part
-    proportional to load (ply-steer, conicity: PHYSICS.md, Fy(alpha = 0) ~ 3 % of Fz)."""
+    proportional to load (ply-steer, conicity: PHYSICS.md, Fy(alpha = 0) ~ 3 % of Fz).
 
-    def __init__(self, ctx: Context):
+    With ``drift_at`` [s] the constants may change at that time (the control of an offset's
+    constancy: a real offset does not follow the session).
+    """
+
+    def __init__(
+        self, ctx: Context, drift_at: float | None = None, channels: Sequence[str] | None = None
+    ):
+        self.channels = tuple(ctx.channels if channels is None else channels)
         names = []
         for i, w in enumerate(ctx.wheels):
-            for ch in ctx.channels:
+            for ch in self.channels:
                 if ch in w.meas:
                     names.append(f"offset_{ch}_{i}")
                     if np.ptp(w.inputs["Fz"]) > 0.2 * ctx.base["FNOMIN"]:
                         names.append(f"offsetperFz_{ch}_{i}")
+                    if drift_at is not None:
+                        names.append(f"offsetlate_{ch}_{i}")
         scales = [max(ctx.sigma[n.split("_")[1]], 1.0) for n in names]
         big = [1e5] * len(names)
-        super().__init__(
-            "offset",
-            "force offsets (constant + proportional to load)",
-            names,
-            [0.0] * len(names),
-            [-b for b in big],
-            big,
-            scales,
-        )
+        label = f"{'/'.join(self.channels)} offsets (constant + proportional to load)"
+        if drift_at is not None:
+            label = f"{'/'.join(self.channels)} offsets changing at t = {drift_at:.0f} s"
+        super().__init__("offset", label, names, [0.0] * len(names), [-b for b in big], big, scales)
+        self.drift_at = drift_at
 
     def output(self, x, ctx, w, wi, out, rows):
         for k, v in zip(self.pnames, x, strict=True):
@@ -391,6 +397,8 @@ class Offset(Component):
                 continue
             if kind == "offset":
                 out[ch] = out[ch] + float(v)
+            elif kind == "offsetlate":
+                out[ch] = out[ch] + float(v) * (w.t[rows] >= self.drift_at)
             else:  # N at FNOMIN, scaled with the load
                 out[ch] = out[ch] + float(v) * w.inputs["Fz"][rows] / ctx.base["FNOMIN"]
 

@@ -30,6 +30,18 @@ FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows ar
 MIN_SEGMENTS = 6
 INPUT_SMOOTH_S = 0.09  # window of the zero-phase input smoother [s]
 ZERO_ALPHA = np.radians(1.0)  # |alpha| below this (and |kappa| < 0.01) counts as zero slip
+# Rare sweeps each selection fold keeps before one goes to the final held-out fold: the MF
+# pressure terms are quadratic (two per side), a fit needs two levels off nominal.
+MIN_RARE_PER_FOLD = 2
+# The two folds' readings of an offset at rest must agree within this many standard errors;
+# stricter than the early/late and cold/hot tests (MIN_T_ALT): the readings come from two
+# differently fitted models, whose differences add to the sweeps' scatter (a real ply-steer
+# offset on lateral_sweeps read 2.1 standard errors apart).
+OFFSET_FOLDS_Z = 3.0
+REST_KAPPA, REST_ALPHA = 0.002, np.radians(0.2)  # slip at rest: where an offset is read
+# Share of a combined-slip candidate's held-out improvement that must come from the samples
+# where both slips are non-zero (the only place its terms act).
+MIN_COMBINED_SHARE = 0.7
 
 
 @dataclass
@@ -242,37 +254,73 @@ def _assign_folds(
     """Folds 0/1 (fit/select) and 2 (final held-out) of whole sweeps, balanced in time.
 
     Sweeps run at a rare condition (pressure or camber away from the session's usual value)
-    are few: they alternate between the two selection folds, per kind of sweep
-    (lateral / longitudinal), so that every selection fit sees one and predicts another (the
-    pieces of one long sweep, at one condition, stay together); the other sweeps are taken
-    three at a time in time order, each triple getting a random permutation of the folds, so
-    every fold spans the whole session.
+    are few and are stratified per kind of sweep (lateral / longitudinal, see ``_rare_folds``).
+    The other sweeps are taken three at a time in time order, each triple getting a random
+    permutation of the folds, so every fold spans the whole session.
     """
     fold = np.zeros(len(t), dtype=np.int8)
     blocks = _blocks(segments, t)
     rare = [_rare_kind(segments, b, inputs) for b in blocks] if inputs else [None] * len(blocks)
-    turn: dict[str, int] = {}
-    last: dict[str, tuple] = {}  # kind -> (condition, fold) of its latest rare block
+    rare_fold = _rare_folds(rare, rng)
     common = []
-    for b, r in zip(blocks, rare, strict=True):
-        if r is None:
+    for j, b in enumerate(blocks):
+        if rare[j] is None:
             common.append(b)
             continue
-        kind, cond = r
-        if kind in last and last[kind][0] == cond:
-            f = last[kind][1]
-        else:
-            f = turn.setdefault(kind, int(rng.integers(2)))
-            turn[kind] = 1 - f
-        last[kind] = (cond, f)
         for i in b:
-            fold[segments[i].index] = f
+            fold[segments[i].index] = rare_fold[j]
     for j in range(0, len(common), 3):
         perm = rng.permutation(3)
         for k, b in enumerate(common[j : j + 3]):
             for i in b:
                 fold[segments[i].index] = int(perm[k])
     return fold
+
+
+def _rare_folds(rare: list[tuple[str, tuple] | None], rng: np.random.Generator) -> dict[int, int]:
+    """Fold of each rare block (index into ``rare``: its (kind, condition) or None).
+
+    A rare sweep is a run of blocks of one kind at one condition (the pieces of one long sweep
+    stay together). Rare sweeps alternate, per kind, between the two selection folds, so
+    that every selection fit sees one and predicts another. A stratum (a kind and the
+    conditions it varies: pressure, camber) with enough rare sweeps that each selection fold
+    keeps MIN_RARE_PER_FOLD of them also gives one, at an interior condition (the held-out
+    test interpolates, as the fit does; the kinds at different conditions), to the final
+    held-out fold, so the final figures test the effect where it acts.
+    """
+    runs: list[tuple[str, tuple, list[int]]] = []
+    last: dict[str, int] = {}  # kind -> its latest run
+    for j, r in enumerate(rare):
+        if r is None:
+            continue
+        kind, cond = r
+        if kind in last and runs[last[kind]][1] == cond:
+            runs[last[kind]][2].append(j)
+            continue
+        last[kind] = len(runs)
+        runs.append((kind, cond, [j]))
+    strata: dict[tuple, list[int]] = {}
+    for k, (kind, cond, _) in enumerate(runs):
+        strata.setdefault((kind, tuple(i for i, v in enumerate(cond) if v)), []).append(k)
+    held: set[int] = set()
+    taken: set[tuple] = set()
+    for key in sorted(strata):
+        ks = strata[key]
+        levels = sorted({runs[k][1] for k in ks})[1:-1]
+        free = [c for c in levels if c not in taken] or levels
+        if len(ks) >= 2 * MIN_RARE_PER_FOLD + 1 and free:
+            held.add(next(k for k in ks if runs[k][1] == free[0]))
+            taken.add(free[0])
+    out: dict[int, int] = {}
+    turn: dict[str, int] = {}
+    for k, (kind, _, js) in enumerate(runs):
+        f = turn.setdefault(kind, int(rng.integers(2)))
+        if k in held:
+            out.update(dict.fromkeys(js, 2))
+            continue
+        out.update(dict.fromkeys(js, f))
+        turn[kind] = 1 - f
+    return out
 
 
 def _rare_kind(segments, block: list[int], inputs: dict) -> tuple[str, tuple] | None:
@@ -442,37 +490,14 @@ def diagnose(wheels: Sequence, model, *, seed: int = 0) -> Diagnosis:
         names_in = {t.component.name for t, _ in chosen}
         trials = []
         in_model = cur_fits[0].components
+        cur = (cur_fits, cur_score, cur_split)
         for c in pool:
             if any(c is k for k in in_model) or (c.name in names_in and not c.extends):
                 continue
             if c.extends and not any(isinstance(k, cd.ThermalHidden) for k in in_model):
                 continue
-            parts = _parts(c, pool, in_model)
-            comps = [*cur_fits[0].components, *parts]
-            x0s = [np.concatenate([f.x, *(p.x0 for p in parts)]) for f in cur_fits]
-            fits, sc, split_sc = sel.cross_validate(comps, ctx, splits, x0s, cur_split)
-            tr = sel.Trial(c, fits, sc)
-            tr.split_scores = split_sc
-            tr.parts = parts
-            (
-                tr.rel_gain,
-                tr.gain_per_sample,
-                tr.sweep_fraction,
-                tr.t_stat,
-                tr.p_sign,
-                tr.weighted_fraction,
-            ) = sel.compare(cur_score, sc)
-            trials.append(tr)
-            log.append(
-                f"step {_step}: {c.name} [{' + '.join(p.label for p in parts)}] "
-                f"held-out rms {sc.rms:.3f} (current {cur_score.rms:.3f}) gain {tr.rel_gain:+.3f} "
-                f"gps {tr.gain_per_sample:+.3f} sweeps {tr.sweep_fraction:.2f} "
-                f"t {tr.t_stat:.1f} p {tr.p_sign:.3f} w {tr.weighted_fraction:.2f} | "
-                + " ".join(
-                    f"{ch} {cur_score.rmse(ch):.1f}->{sc.rmse(ch):.1f}" for ch in ctx.channels
-                )
-            )
-        best = _choose(trials, ctx, cur_fits, splits, log)
+            trials.append(_trial(c, _parts(c, pool, in_model), ctx, splits, cur, log, _step))
+        best = _choose(trials, ctx, cur, splits, log)
         if best is None:
             break
         chosen.append(
@@ -484,6 +509,33 @@ def diagnose(wheels: Sequence, model, *, seed: int = 0) -> Diagnosis:
 
     cur_fits = _drift_form(ctx, cur_fits, chosen, drifts, rows_ab, log)
     return _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, stride)
+
+
+def _trial(c, parts, ctx, splits, cur, log, step) -> sel.Trial:
+    """Cross-validate the current model plus ``parts`` (for candidate ``c``) against it."""
+    cur_fits, cur_score, cur_split = cur
+    comps = [*cur_fits[0].components, *parts]
+    x0s = [np.concatenate([f.x, *(p.x0 for p in parts)]) for f in cur_fits]
+    fits, sc, split_sc = sel.cross_validate(comps, ctx, splits, x0s, cur_split)
+    tr = sel.Trial(c, fits, sc)
+    tr.split_scores = split_sc
+    tr.parts = parts
+    (
+        tr.rel_gain,
+        tr.gain_per_sample,
+        tr.sweep_fraction,
+        tr.t_stat,
+        tr.p_sign,
+        tr.weighted_fraction,
+    ) = sel.compare(cur_score, sc)
+    log.append(
+        f"step {step}: {c.name} [{' + '.join(p.label for p in parts)}] "
+        f"held-out rms {sc.rms:.3f} (current {cur_score.rms:.3f}) gain {tr.rel_gain:+.3f} "
+        f"gps {tr.gain_per_sample:+.3f} sweeps {tr.sweep_fraction:.2f} "
+        f"t {tr.t_stat:.1f} p {tr.p_sign:.3f} w {tr.weighted_fraction:.2f} | "
+        + " ".join(f"{ch} {cur_score.rmse(ch):.1f}->{sc.rmse(ch):.1f}" for ch in ctx.channels)
+    )
+    return tr
 
 
 def _drift_form(ctx, cur_fits, chosen, variants, rows, log) -> list[sel.Fit]:
@@ -541,8 +593,9 @@ def _slow_node(tr: sel.Trial) -> bool:
     return any(p.extends for p in tr.parts)
 
 
-def _choose(trials, ctx, cur_fits, splits, log) -> sel.Trial | None:
+def _choose(trials, ctx, cur, splits, log) -> sel.Trial | None:
     """The best passing trial after Occam's rule, the delay sign check and the controls."""
+    cur_fits = cur[0]
     ranked = sorted(trials, key=lambda t: t.heldout.rms)
     for tr in ranked:
         c = tr.component
@@ -551,7 +604,12 @@ def _choose(trials, ctx, cur_fits, splits, log) -> sel.Trial | None:
         if c.name == "time_delay" and min(f.x[-1] for f in tr.fits) <= 0.0:
             log.append("time_delay rejected: negative fitted delay is not a delay")
             continue
-        if c.name == "offset" and not _offset_at_zero_slip(tr, ctx, cur_fits, splits, log):
+        if c.name == "offset":
+            tr = _constant_offset(tr, ctx, cur, splits, log)
+            if tr is None:
+                continue
+            c = tr.component
+        if c.name == "combined_slip" and not _combined_where_both(tr, ctx, cur_fits, splits, log):
             continue
         if c.name == "drift":
             # Only a slow node that itself passes (and beats its controls) may stand in for drift.
@@ -587,32 +645,191 @@ def _choose(trials, ctx, cur_fits, splits, log) -> sel.Trial | None:
     return None
 
 
+def _near_zero_slip(w: cd.Wheel, r: np.ndarray) -> np.ndarray:
+    """Rows of ``r`` at zero slip (|kappa| < 0.01, |alpha| < ZERO_ALPHA)."""
+    return r[(np.abs(w.inputs["kappa"][r]) < 0.01) & (np.abs(w.inputs["alpha"][r]) < ZERO_ALPHA)]
+
+
+def _at_rest(w: cd.Wheel, r: np.ndarray) -> np.ndarray:
+    """Rows of ``r`` at rest in slip (|kappa| < 0.002, |alpha| < 0.2 deg: pauses and holds),
+    where the slip stiffness (~1e5 N per unit slip) cannot stand in for an offset."""
+    return r[
+        (np.abs(w.inputs["kappa"][r]) < REST_KAPPA) & (np.abs(w.inputs["alpha"][r]) < REST_ALPHA)
+    ]
+
+
+def _combined_rows(w: cd.Wheel, r: np.ndarray) -> np.ndarray:
+    """Rows of ``r`` where both slips are non-zero (where combined-slip terms act)."""
+    return r[(np.abs(w.inputs["kappa"][r]) >= 0.01) & (np.abs(w.inputs["alpha"][r]) >= ZERO_ALPHA)]
+
+
+def _gain_on(tr, ctx, cur_fits, splits, pick) -> tuple[float, float, int]:
+    """Held-out gain of ``tr`` over the current model on the rows ``pick(wheel, rows)`` keeps.
+
+    Returns (relative RMS gain there, share of the whole held-out improvement [noise variances]
+    made there, rows).
+    """
+    sub = [[pick(w, r) for w, r in zip(ctx.wheels, test, strict=True)] for _, test in splits]
+    cur = sel.merge(
+        [sel.score(f.components, f.x, ctx, n) for f, n in zip(cur_fits, sub, strict=True)]
+    )
+    new = sel.merge(
+        [sel.score(f.components, f.x, ctx, n) for f, n in zip(tr.fits, sub, strict=True)]
+    )
+    whole = sum(a.total for a in tr.split_scores)
+    cur_whole = sum(
+        sel.score(f.components, f.x, ctx, test).total
+        for f, (_, test) in zip(cur_fits, splits, strict=True)
+    )
+    share = (cur.total - new.total) / max(cur_whole - whole, 1e-12)
+    return 1.0 - new.rms / max(cur.rms, 1e-12), float(share), cur.n
+
+
 def _offset_at_zero_slip(tr, ctx, cur_fits, splits, log) -> bool:
     """An offset must show where it is defined: on held-out samples near zero slip.
 
     A constant at zero slip (PHYSICS.md) lowers the held-out error there by the same margin
     as overall; an offset that only helps on the slopes is standing in for something else.
     """
-    near = []
-    for _, test in splits:
-        near.append(
-            [
-                r[
-                    (np.abs(w.inputs["kappa"][r]) < 0.01)
-                    & (np.abs(w.inputs["alpha"][r]) < ZERO_ALPHA)
-                ]
-                for w, r in zip(ctx.wheels, test, strict=True)
-            ]
+    gain, _, n = _gain_on(tr, ctx, cur_fits, splits, _near_zero_slip)
+    if n == 0 or gain < sel.MIN_REL_RMSE_GAIN:
+        log.append(f"offset rejected: held-out gain near zero slip {gain:+.3f} (n {n})")
+        return False
+    return True
+
+
+def _constant_offset(tr, ctx, cur, splits, log) -> sel.Trial | None:
+    """The offset trial restricted to the channels whose offset is constant, or None.
+
+    An offset is a constant at zero slip (PHYSICS.md): a channel where it is not
+    (``_inconstant_channels``) has no offset; the others are tried again alone. The offset
+    must then show where it is defined (near zero slip), and an offset that may change at
+    mid-session (the drift control) must not predict held-out sweeps clearly better.
+    """
+    bad = _inconstant_channels(tr, ctx, cur[0], splits, log)
+    if bad:
+        keep = [ch for ch in ctx.channels if ch not in bad]
+        if not keep:
+            return None
+        c = cd.Offset(ctx, channels=keep)
+        tr = _trial(c, [c], ctx, splits, cur, log, "offset")
+        if not sel.passes(tr) or _inconstant_channels(tr, ctx, cur[0], splits, log):
+            log.append(f"offset rejected: {c.label} does not pass on its own")
+            return None
+    if not _offset_at_zero_slip(tr, ctx, cur[0], splits, log):
+        return None
+    t_mid = 0.5 * ctx.t_end
+    drifting = cd.Offset(ctx, drift_at=t_mid, channels=tr.component.channels)
+    comps = [*cur[0][0].components, drifting]
+    x0s = [np.concatenate([f.x, drifting.x0]) for f in cur[0]]
+    _, sc, _ = sel.cross_validate(comps, ctx, splits, x0s)
+    if sc.rms < tr.heldout.rms * (1.0 - sel.MIN_CONTROL_MARGIN):
+        log.append(
+            f"offset rejected: control '{drifting.label}' predicts better "
+            f"({sc.rms:.3f} vs {tr.heldout.rms:.3f})"
         )
-    cur = sel.merge(
-        [sel.score(f.components, f.x, ctx, n) for f, n in zip(cur_fits, near, strict=True)]
+        return None
+    tr.reason = (
+        "constant: read at rest, both folds' sweeps, early and late, cold and hot ones agree, "
+        f"and '{drifting.label}' predicts no better ({sc.rms:.3f} vs {tr.heldout.rms:.3f} "
+        "held-out RMS, noise units)"
     )
-    new = sel.merge(
-        [sel.score(f.components, f.x, ctx, n) for f, n in zip(tr.fits, near, strict=True)]
-    )
-    gain = 1.0 - new.rms / max(cur.rms, 1e-12)
-    if cur.n == 0 or gain < sel.MIN_REL_RMSE_GAIN:
-        log.append(f"offset rejected: held-out gain near zero slip {gain:+.3f} (n {cur.n})")
+    return tr
+
+
+def _inconstant_channels(tr, ctx, cur_fits, splits, log) -> set[str]:
+    """Channels whose offset is not a constant at zero slip (PHYSICS.md).
+
+    Sweeps are the units (rows are autocorrelated); "agree" is within two standard errors.
+
+    - Read at rest in slip on the held-out sweeps of each selection fold, with the current
+      model (without the offset) fitted on the other fold, the offset is the same: it is a
+      property of the session, not of how the other effects were fitted.
+    - Per held-out sweep, the mean residual at rest of the model with the offset is the
+      offset that sweep alone would want on top. Its means over the early and the late sweeps
+      (and, when the model has a temperature, over the cold and the hot ones) agree: an
+      offset does not follow the session or the heating.
+    """
+    bad: set[str] = set()
+    read: dict[tuple[int, str], list[tuple[float, float]]] = {
+        (wi, ch): [] for wi in range(len(ctx.wheels)) for ch in tr.component.channels
+    }
+    for (_, test), f, f0 in zip(splits, tr.fits, cur_fits, strict=True):
+        for wi, (w, r) in enumerate(zip(ctx.wheels, test, strict=True)):
+            out = cd.predict(f.components, f.x, ctx, wi, np.arange(w.n))
+            out0 = cd.predict(f0.components, f0.x, ctx, wi, np.arange(w.n))
+            inp = dict(w.inputs)
+            for c, xc in zip(f.components, cd.split_x(f.components, f.x), strict=True):
+                c.inputs(xc, ctx, w, inp)
+            states = {"time": w.t}
+            if inp["T"] is not None and np.ptp(inp["T"]) > 1.0:
+                states["temperature"] = inp["T"]
+            sweeps = [
+                _at_rest(w, np.intersect1d(np.concatenate([w.segments[i].index for i in b]), r))
+                for b in _blocks(w.segments, w.t)
+            ]
+            for ch in tr.component.channels:
+                if ch not in w.meas:
+                    continue
+                e = w.meas[ch] - out[ch]
+                keep = [idx[np.isfinite(e[idx])] for idx in sweeps]
+                keep = [idx for idx in keep if len(idx) >= 5]
+                off = np.array([np.mean(e[idx]) for idx in keep])
+                e0 = w.meas[ch] - out0[ch]
+                read[(wi, ch)].append(_mean_se(np.array([np.mean(e0[idx]) for idx in keep])))
+                for label, x in states.items():
+                    d, z = _split_difference(off, np.array([np.mean(x[idx]) for idx in keep]))
+                    if z > sel.MIN_T_ALT:
+                        log.append(
+                            f"offset on {ch} rejected: {w.prefix} residual at rest differs "
+                            f"by {label} ({d:+.1f} N, {z:.1f} standard errors)"
+                        )
+                        bad.add(ch)
+    for (wi, ch), ms in read.items():
+        if len(ms) == 2 and all(math.isfinite(se) for _, se in ms):
+            (m0, s0), (m1, s1) = ms
+            z = abs(m1 - m0) / max(math.hypot(s0, s1), 1e-9)
+            if z > OFFSET_FOLDS_Z:
+                log.append(
+                    f"offset on {ch} rejected: {ctx.wheels[wi].prefix} read at rest without it, "
+                    f"the two folds' sweeps disagree ({m0:+.1f} vs {m1:+.1f} N, {z:.1f} "
+                    "standard errors): it depends on how the other effects were fitted"
+                )
+                bad.add(ch)
+    return bad
+
+
+def _mean_se(y: np.ndarray) -> tuple[float, float]:
+    """Mean and its standard error (NaN with fewer than two values)."""
+    if len(y) < 2:
+        return float("nan"), float("nan")
+    return float(np.mean(y)), float(np.std(y, ddof=1) / math.sqrt(len(y)))
+
+
+def _split_difference(y: np.ndarray, level: np.ndarray) -> tuple[float, float]:
+    """Mean of ``y`` above the median ``level`` minus below, and its size in standard errors
+    (0 with fewer than two on a side)."""
+    hi = level > np.median(level) if len(level) else level.astype(bool)
+    a, b = y[~hi], y[hi]
+    if min(len(a), len(b)) < 2:
+        return 0.0, 0.0
+    d = float(np.mean(b) - np.mean(a))
+    se = math.hypot(np.std(a, ddof=1) / math.sqrt(len(a)), np.std(b, ddof=1) / math.sqrt(len(b)))
+    return d, abs(d) / max(se, 1e-9)
+
+
+def _combined_where_both(tr, ctx, cur_fits, splits, log) -> bool:
+    """Combined slip acts only where both slips are non-zero: its gain must come from there.
+
+    In pure sweeps the weighting functions are 1 (Gxa(alpha = 0) = Gyk(kappa = 0) = 1, eqs.
+    4.E51, 4.E59); an improvement made elsewhere is another effect leaking into its terms.
+    """
+    gain, share, n = _gain_on(tr, ctx, cur_fits, splits, _combined_rows)
+    if n == 0 or gain < sel.MIN_REL_RMSE_GAIN or share < MIN_COMBINED_SHARE:
+        log.append(
+            f"combined_slip rejected: held-out gain where both slips act {gain:+.3f}, "
+            f"{share:.0%} of the improvement (n {n})"
+        )
         return False
     return True
 
