@@ -188,6 +188,16 @@ def _moments_stage(P, kappa, Vx, mf52, i0, n, s):
     return o
 
 
+@kernel
+def _zero_camber(s, n) -> bool:
+    """Whether the camber used by samples 0..n-1 of the block is +0.0 (not -0.0) throughout."""
+    for j in range(n):
+        g = s[S_GAMMA, j]
+        if g != 0.0 or math.copysign(1.0, g) < 0.0:
+            return False
+    return True
+
+
 @standalone
 def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out):
     """Rows 0..N_FORCES-1 of ``out`` for every sample, block by block, stage by stage."""
@@ -199,7 +209,10 @@ def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out):
         _keep(s, COND_ROWS, o, n)
         _keep(s, LONG_ROWS, _longitudinal_stage(P, Vx, limits, i0, n, s), n)
         _keep(s, LAT_ROWS, _lateral_stage(P, limits, mf52, n, s), n)
-        _keep(s, LAT_G0_ROWS, _lateral_zero_camber_stage(P, limits, mf52, n, s), n)
+        if _zero_camber(s, n):  # Fy0 at zero camber is Fy0 itself: the same call, bit for bit
+            s[S_FY0_G0, :n] = s[S_FY0, :n]
+        else:
+            _keep(s, LAT_G0_ROWS, _lateral_zero_camber_stage(P, limits, mf52, n, s), n)
         _keep(s, COMB_ROWS, _combined_stage(P, limits, n, s), n)
         _keep(s, MZ_ROWS, _aligning_stage(P, Vx, limits, mf52, i0, n, s), n)
         _keep(s, MOM_ROWS, _moments_stage(P, kappa, Vx, mf52, i0, n, s), n)
