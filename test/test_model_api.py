@@ -77,6 +77,19 @@ def test_evaluate_one_equals_evaluate(model, limits) -> None:
         assert one == expected, i
 
 
+@pytest.mark.parametrize("limits", [True, False])
+def test_zero_camber_block_shortcut_is_exact(model, limits) -> None:
+    # Blocks of zero camber take the shortcut (Fy0 at zero camber = Fy0); a tiny camber on
+    # sample 0 makes its block run the zero-camber stage: the other samples must be bit-equal.
+    Fz, kappa, alpha, _, Vx, p, T = _random_inputs(1024, seed=5)
+    gamma = np.zeros(1024)
+    short = model.evaluate(Fz, kappa, alpha, gamma, Vx, p, T, limits=limits, full=False)
+    gamma[0] = 1e-300
+    full = model.evaluate(Fz, kappa, alpha, gamma, Vx, p, T, limits=limits, full=False)
+    for k in ("Fx", "Fy", "Fz", "Mx", "My", "Mz"):
+        np.testing.assert_array_equal(getattr(short, k)[1:], getattr(full, k)[1:], err_msg=k)
+
+
 def test_with_params_is_a_new_model(model) -> None:
     before = model.evaluate(5000.0, 0.05, 0.05)
     other = model.with_params({"PDX1": 1.5, "lmuy": 0.8})  # names are case-insensitive

@@ -58,126 +58,164 @@ BLOCK = 512  # samples per block: the scratch rows stay in the L1/L2 cache
 
 
 @kernel
-def _conditions_stage(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, i0, n, s):
-    """Operating point and increments of samples i0..i0+n-1 (scratch column j = i - i0)."""
+def _keep(s, rows, o, n):
+    """Copy row k of a stage's block ``o`` to scratch row ``rows[k]`` (columns 0..n-1)."""
+    for k in range(len(rows)):
+        s[rows[k], :n] = o[k, :n]
+
+
+# Each stage is compiled on its own (LLVM's cost grows faster than the size of the function it
+# optimises) and writes into a block it allocates: LLVM then knows that the stores cannot alias
+# the inputs, P or the scratch it reads, and vectorises the loop. The rows each stage fills:
+COND_ROWS = (S_FZ, S_KAPPA, S_ALPHA, S_GAMMA, S_P, S_FZ_MZ, S_RED, S_DFZ, S_DPI, S_DT, S_COS_AP, FZ)
+LONG_ROWS = (S_FX0, MUX, KXK)
+LAT_ROWS = (S_FY0, S_SHY, S_SVY, S_BY, S_CY, MUY, KYA)
+LAT_G0_ROWS = (S_FY0_G0,)
+COMB_ROWS = (FX, FY, S_SVYK, S_FY_PRIME)
+MZ_ROWS = (MZ, T_TRAIL, MZR)
+MOM_ROWS = (MX, MY)
+
+
+@standalone
+def _conditions_stage(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, i0, n):
+    """Operating point and increments of samples i0..i0+n-1 (column j = i - i0), COND_ROWS."""
+    o = np.empty((len(COND_ROWS), BLOCK))
     for j in range(n):
         i = i0 + j
         Fz_, kappa_, alpha_, gamma_, _, p_, uFz, _, Fz_low, red = operating_point(
             P, Fz[i], kappa[i], alpha[i], gamma[i], Vx[i], p[i], phit[i], limits
         )
         Fz_mz = Fz_low if limits else Fz_
-        s[S_FZ, j] = Fz_
-        s[S_KAPPA, j] = kappa_
-        s[S_ALPHA, j] = alpha_
-        s[S_GAMMA, j] = gamma_
-        s[S_P, j] = p_
-        s[S_FZ_MZ, j] = 0.0 if Fz_ <= 0.0 else Fz_mz
-        s[S_RED, j] = red
-        s[S_DFZ, j] = load_increment(P, Fz_)
-        s[S_DPI, j] = pressure_increment(P, p_)
-        s[S_DT, j] = temperature_increment(P, T[i])
-        s[S_COS_AP, j] = cos_alpha_prime(alpha_, Vx[i])
-        s[FZ, j] = uFz
+        o[0, j] = Fz_
+        o[1, j] = kappa_
+        o[2, j] = alpha_
+        o[3, j] = gamma_
+        o[4, j] = p_
+        o[5, j] = 0.0 if Fz_ <= 0.0 else Fz_mz
+        o[6, j] = red
+        o[7, j] = load_increment(P, Fz_)
+        o[8, j] = pressure_increment(P, p_)
+        o[9, j] = temperature_increment(P, T[i])
+        o[10, j] = cos_alpha_prime(alpha_, Vx[i])
+        o[11, j] = uFz
+    return o
 
 
-@kernel
+@standalone
 def _longitudinal_stage(P, Vx, limits, i0, n, s):
-    """Pure-slip Fx0, mux, Kxk (4.E9)-(4.E18)."""
+    """Pure-slip Fx0, mux, Kxk (4.E9)-(4.E18), LONG_ROWS."""
+    o = np.empty((len(LONG_ROWS), BLOCK))
     for j in range(n):
         i = i0 + j
-        Fx0, mux, Kxk = Fx0_pure(P, s[S_FZ, j], s[S_KAPPA, j], s[S_GAMMA, j], Vx[i], s[S_DFZ, j],
-                                 s[S_DPI, j], s[S_DT, j], s[S_RED, j], limits)  # fmt: skip
-        s[S_FX0, j] = Fx0
-        s[MUX, j] = mux
-        s[KXK, j] = Kxk
+        o[0, j], o[1, j], o[2, j] = Fx0_pure(
+            P, s[S_FZ, j], s[S_KAPPA, j], s[S_GAMMA, j], Vx[i], s[S_DFZ, j], s[S_DPI, j],
+            s[S_DT, j], s[S_RED, j], limits,
+        )  # fmt: skip
+    return o
 
 
-@kernel
+@standalone
 def _lateral_stage(P, limits, mf52, n, s):
-    """Pure-slip Fy0, muy, Kya and the shifts (4.E19)-(4.E30)."""
+    """Pure-slip Fy0, the shifts, muy and Kya (4.E19)-(4.E30), LAT_ROWS."""
+    o = np.empty((len(LAT_ROWS), BLOCK))
     for j in range(n):
         Fy0, muy, Kya, SHy, SVy, By, Cy = Fy0_pure(
             P, s[S_FZ, j], s[S_ALPHA, j], s[S_GAMMA, j], s[S_DFZ, j], s[S_DPI, j], s[S_DT, j],
             s[S_RED, j], limits, mf52,
         )  # fmt: skip
-        s[S_FY0, j] = Fy0
-        s[S_SHY, j] = SHy
-        s[S_SVY, j] = SVy
-        s[S_BY, j] = By
-        s[S_CY, j] = Cy
-        s[MUY, j] = muy
-        s[KYA, j] = Kya
+        o[0, j] = Fy0
+        o[1, j] = SHy
+        o[2, j] = SVy
+        o[3, j] = By
+        o[4, j] = Cy
+        o[5, j] = muy
+        o[6, j] = Kya
+    return o
 
 
-@kernel
+@standalone
 def _lateral_zero_camber_stage(P, limits, mf52, n, s):
-    """Fy0 at zero camber (and no turn slip), for Fy' of (4.E74)."""
+    """Fy0 at zero camber (and no turn slip), for Fy' of (4.E74), LAT_G0_ROWS."""
+    o = np.empty((len(LAT_G0_ROWS), BLOCK))
     for j in range(n):
-        s[S_FY0_G0, j] = Fy0_pure(
+        o[0, j] = Fy0_pure(
             P, s[S_FZ, j], s[S_ALPHA, j], 0.0, s[S_DFZ, j], s[S_DPI, j], s[S_DT, j],
             s[S_RED, j], limits, mf52,
         )[0]  # fmt: skip
+    return o
 
 
-@kernel
+@standalone
 def _combined_stage(P, limits, n, s):
-    """Combined-slip Fx (4.E50) and Fy (4.E58), and Fy' (Gyk keeps the camber, as MFeval)."""
+    """Combined-slip Fx (4.E50), Fy (4.E58), SVyk and Fy' (Gyk keeps the camber, as MFeval)."""
+    o = np.empty((len(COMB_ROWS), BLOCK))
     for j in range(n):
         kappa_, alpha_, gamma_, dfz = s[S_KAPPA, j], s[S_ALPHA, j], s[S_GAMMA, j], s[S_DFZ, j]
         Gyk = Gyk_weighting(P, kappa_, alpha_, gamma_, dfz, limits)
         SVyk = SVyk_shift(P, s[S_FZ, j], kappa_, alpha_, gamma_, dfz, s[MUY, j], s[S_RED, j])
-        s[FX, j] = Gxa_weighting(P, kappa_, alpha_, gamma_, dfz, limits) * s[S_FX0, j]
-        s[FY, j] = Gyk * s[S_FY0, j] + SVyk
-        s[S_SVYK, j] = SVyk
-        s[S_FY_PRIME, j] = Gyk * s[S_FY0_G0, j]
+        o[0, j] = Gxa_weighting(P, kappa_, alpha_, gamma_, dfz, limits) * s[S_FX0, j]
+        o[1, j] = Gyk * s[S_FY0, j] + SVyk
+        o[2, j] = SVyk
+        o[3, j] = Gyk * s[S_FY0_G0, j]
+    return o
 
 
-@kernel
+@standalone
 def _aligning_stage(P, Vx, limits, mf52, i0, n, s):
-    """Aligning torque Mz, trail t and residual torque Mzr (4.E71)-(4.E78)."""
+    """Aligning torque Mz, trail t and residual torque Mzr (4.E71)-(4.E78), MZ_ROWS."""
+    o = np.empty((len(MZ_ROWS), BLOCK))
     for j in range(n):
         i = i0 + j
-        Mz, t, Mzr = Mz_aligning(
+        o[0, j], o[1, j], o[2, j] = Mz_aligning(
             P, s[S_FZ_MZ, j], s[S_DFZ, j], s[S_DPI, j], s[S_KAPPA, j], s[S_ALPHA, j],
             s[S_GAMMA, j], Vx[i], s[S_COS_AP, j], limits, mf52, s[KXK, j], s[KYA, j],
             s[S_SHY, j], s[S_SVY, j], s[S_BY, j], s[S_CY, j], s[FX, j], s[FY, j],
             s[S_SVYK, j], s[S_FY_PRIME, j], s[S_RED, j],
         )  # fmt: skip
-        s[MZ, j] = Mz
-        s[T_TRAIL, j] = t
-        s[MZR, j] = Mzr
+    return o
 
 
-@kernel
+@standalone
 def _moments_stage(P, kappa, Vx, mf52, i0, n, s):
-    """Overturning couple Mx and rolling resistance My."""
+    """Overturning couple Mx and rolling resistance My, MOM_ROWS."""
+    o = np.empty((len(MOM_ROWS), BLOCK))
     for j in range(n):
         i = i0 + j
         gamma_ = s[S_GAMMA, j]
-        s[MX, j] = Mx_overturning(P, s[S_FZ, j], gamma_, s[S_DPI, j], s[FY, j])
-        s[MY, j] = My_rolling_resistance(P, s[FZ, j], kappa[i], gamma_, Vx[i], s[S_P, j],
-                                         s[FX, j], mf52)  # fmt: skip
+        o[0, j] = Mx_overturning(P, s[S_FZ, j], gamma_, s[S_DPI, j], s[FY, j])
+        o[1, j] = My_rolling_resistance(P, s[FZ, j], kappa[i], gamma_, Vx[i], s[S_P, j],
+                                        s[FX, j], mf52)  # fmt: skip
+    return o
+
+
+@kernel
+def _zero_camber(s, n) -> bool:
+    """Whether the camber used by samples 0..n-1 of the block is +0.0 (not -0.0) throughout."""
+    for j in range(n):
+        g = s[S_GAMMA, j]
+        if g != 0.0 or math.copysign(1.0, g) < 0.0:
+            return False
+    return True
 
 
 @standalone
 def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out):
-    """Rows 0..N_FORCES-1 of ``out`` for every sample, block by block, stage by stage.
-
-    Each stage is one loop over a block that LLVM vectorises: the stages are inlined here,
-    so the scratch block has a constant shape and LLVM sees that its rows do not overlap.
-    ``limits`` is a compile-time constant (one specialisation for useMode 111, one for 211).
-    """
+    """Rows 0..N_FORCES-1 of ``out`` for every sample, block by block, stage by stage."""
     mf52 = is_mf52(P)
     s = np.empty((N_SCRATCH, BLOCK))
     for i0 in range(0, Fz.shape[0], BLOCK):
         n = min(BLOCK, Fz.shape[0] - i0)
-        _conditions_stage(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, i0, n, s)
-        _longitudinal_stage(P, Vx, limits, i0, n, s)
-        _lateral_stage(P, limits, mf52, n, s)
-        _lateral_zero_camber_stage(P, limits, mf52, n, s)
-        _combined_stage(P, limits, n, s)
-        _aligning_stage(P, Vx, limits, mf52, i0, n, s)
-        _moments_stage(P, kappa, Vx, mf52, i0, n, s)
+        o = _conditions_stage(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, i0, n)
+        _keep(s, COND_ROWS, o, n)
+        _keep(s, LONG_ROWS, _longitudinal_stage(P, Vx, limits, i0, n, s), n)
+        _keep(s, LAT_ROWS, _lateral_stage(P, limits, mf52, n, s), n)
+        if _zero_camber(s, n):  # Fy0 at zero camber is Fy0 itself: the same call, bit for bit
+            s[S_FY0_G0, :n] = s[S_FY0, :n]
+        else:
+            _keep(s, LAT_G0_ROWS, _lateral_zero_camber_stage(P, limits, mf52, n, s), n)
+        _keep(s, COMB_ROWS, _combined_stage(P, limits, n, s), n)
+        _keep(s, MZ_ROWS, _aligning_stage(P, Vx, limits, mf52, i0, n, s), n)
+        _keep(s, MOM_ROWS, _moments_stage(P, kappa, Vx, mf52, i0, n, s), n)
         for k in range(N_FORCES):
             out[k, i0 : i0 + n] = s[k, :n]
 

@@ -18,18 +18,23 @@ from .jit import kernel
 
 
 @kernel
-def low_load_reduction(P, Fz: float, power: float) -> float:
-    """Load below FZMIN faded out as Fz (Fz/FZMIN)^power (MFeval, empirical TNO choice)."""
+def low_load_ratio(P, Fz: float) -> float:
+    """Fz/FZMIN below FZMIN, else 1: Mx and My fade the load out as Fz (Fz/FZMIN)^power.
+
+    MFeval's empirical TNO choice, with the integer powers 2 (Mx) and 1 (My): plain
+    multiplications by this ratio, where a pow would cost an exp and a log per sample.
+    """
     FZMIN = P[c.FZMIN]
     if FZMIN > 0.0 and Fz < FZMIN:
-        return Fz * vm.pow(Fz / FZMIN, power)
-    return Fz
+        return Fz / FZMIN
+    return 1.0
 
 
 @kernel
 def Mx_overturning(P, Fz: float, gamma: float, dpi: float, Fy: float) -> float:
     """Overturning couple Mx, TNO form (Besselink 2010 eq. 49, Pacejka 4.E69 extended) [N m]."""
-    Fz = low_load_reduction(P, Fz, 2.0)
+    r = low_load_ratio(P, Fz)
+    Fz = Fz * (r * r)
     R0 = P[c.UNLOADED_RADIUS]
     Fz0 = P[c.FNOMIN]
     return R0 * Fz * P[c.LMX] * (
@@ -53,7 +58,7 @@ def My_rolling_resistance(P, uFz, kappa_raw, gamma, Vx, p, Fx, is_mf52) -> float
     Near standstill MFeval fades My with the slip ratio (empirical TNO behaviour), reverses it
     for driving backwards and sets it to zero at Vx = 0.
     """
-    Fz = low_load_reduction(P, uFz, 1.0)
+    Fz = uFz * low_load_ratio(P, uFz)
     R0 = P[c.UNLOADED_RADIUS]
     Fz0 = P[c.FNOMIN]
     V0 = P[c.LONGVL]
