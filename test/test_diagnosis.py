@@ -225,6 +225,17 @@ def test_cli_reports_a_missing_bag_clearly(tmp_path):
     assert "nope" in res.stderr
 
 
+def test_cli_refuses_a_missing_reference_before_diagnosing(tmp_path):
+    out_json = tmp_path / "d.json"
+    cmd = [TOOL, "diagnose", str(ROOT / "bags" / "flat_trac_nominal"), "--tir", str(TIR),
+           "--json", str(out_json), "--reference", str(tmp_path / "twin"),
+           "--reference-json", str(tmp_path / "clean.json")]  # fmt: skip
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
+    assert res.returncode == 1
+    assert "twin: no such file" in res.stderr
+    assert not out_json.exists()  # refused up front, not after the diagnosis
+
+
 def test_rare_sweeps_are_stratified_over_all_folds():
     """A stratum with enough rare sweeps (two left per selection fold) gives one at an
     interior condition to the final held-out fold, the kinds at different conditions; the

@@ -80,6 +80,8 @@ def run(args) -> int:
     out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
     if bool(args.reference) != bool(args.reference_json):
         raise ValueError("--reference and --reference-json go together")
+    if args.reference and not Path(args.reference).exists():  # before the minutes of diagnosis
+        raise FileNotFoundError(f"{args.reference}: no such file or directory")
     for path in (args.json, args.out_tir, args.reference_json):
         _check_free(path, args.force)
     if (
