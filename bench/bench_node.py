@@ -14,7 +14,7 @@ other load on the machine does not inflate as much as latency.
 Scheduling, the same for all three processes (driver, node, echo node): ``--rt-priority N``
 (default 10; 0 = normal scheduling) puts every thread on SCHED_FIFO N: the node through its
 ``rt_priority`` parameter, the echo node and the driver through the same
-``tire_model_ros.node.realtime.apply``; ``--server-cpus``/``--driver-cpus`` pin them. Each
+``tire_model_ros.node.realtime.tune``; ``--server-cpus``/``--driver-cpus`` pin them. Each
 process freezes its start-up heap (the node does so itself), so that no full garbage
 collection of ~130k start-up objects (16-54 ms measured) lands in a measurement. On a
 machine shared with other work, normal scheduling leaves the tail to whoever else is running
@@ -95,9 +95,8 @@ def echo_main(
         node.create_subscription(WrenchStamped, f"{prefix}/load", lambda m: None, qos)
     ex = EventsExecutor()
     ex.add_node(node)
-    for problem in realtime.apply(rt_priority, cpus or []):
+    for problem in realtime.tune(rt_priority, cpus or []):
         print(f"echo_node scheduling: {problem}", file=sys.stderr)
-    realtime.freeze_heap()
     with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
         spin(ex)
     node.destroy_node()
@@ -147,9 +146,8 @@ class Driver:
         self._stop = False
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
-        for problem in realtime.apply(rt_priority, cpus or []):
+        for problem in realtime.tune(rt_priority, cpus or []):
             print(f"driver scheduling: {problem}", file=sys.stderr)
-        realtime.freeze_heap()
 
     def _cb(self, prefix: str):
         box = self.recv[prefix]

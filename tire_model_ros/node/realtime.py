@@ -60,3 +60,13 @@ def freeze_heap() -> None:
     """Collect once, then exclude every object alive now from later collections."""
     gc.collect()
     gc.freeze()
+
+
+def tune(rt_priority: int = 0, cpus: Sequence[int] = ()) -> list[str]:
+    """What a latency-sensitive process does once set up: ``apply``, then ``freeze_heap``.
+
+    Returns the problems of ``apply``.
+    """
+    problems = apply(rt_priority, cpus)
+    freeze_heap()
+    return problems

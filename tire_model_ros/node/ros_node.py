@@ -563,12 +563,11 @@ def tune_process(node: Node) -> None:
         cpus = list(node.get_parameter("cpus").value)
     except rclpy.exceptions.ParameterUninitializedException:
         cpus = []  # unset: all CPUs
-    problems = realtime.apply(priority, cpus)
+    problems = realtime.tune(priority, cpus)
     for problem in problems:
         node.get_logger().warning(f"scheduling: {problem}")
     if (priority or cpus) and not problems:
         node.get_logger().info(f"scheduling: SCHED_FIFO {priority or 'off'}, cpus {cpus or 'all'}")
-    realtime.freeze_heap()
 
 
 def main(args: list[str] | None = None) -> int:
