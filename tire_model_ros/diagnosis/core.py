@@ -688,8 +688,9 @@ def _gain_on(tr, ctx, cur_fits, splits, pick) -> tuple[float, float, int]:
 def _offset_at_zero_slip(tr, ctx, cur_fits, splits, log) -> bool:
     """An offset must show where it is defined: on held-out samples near zero slip.
 
-    A constant at zero slip (PHYSICS.md) lowers the held-out error there by the same margin
-    as overall; an offset that only helps on the slopes is standing in for something else.
+    A constant at zero slip (PHYSICS.md) lowers the held-out error there by at least the
+    least gain selection accepts (MIN_REL_RMSE_GAIN); an offset that only helps on the slopes
+    is standing in for something else.
     """
     gain, _, n = _gain_on(tr, ctx, cur_fits, splits, _near_zero_slip)
     if n == 0 or gain < sel.MIN_REL_RMSE_GAIN:
@@ -813,9 +814,9 @@ def _split_difference(y: np.ndarray, level: np.ndarray) -> tuple[float, float]:
     a, b = y[~hi], y[hi]
     if min(len(a), len(b)) < 2:
         return 0.0, 0.0
-    d = float(np.mean(b) - np.mean(a))
-    se = math.hypot(np.std(a, ddof=1) / math.sqrt(len(a)), np.std(b, ddof=1) / math.sqrt(len(b)))
-    return d, abs(d) / max(se, 1e-9)
+    (ma, sa), (mb, sb) = _mean_se(a), _mean_se(b)
+    d = mb - ma
+    return d, abs(d) / max(math.hypot(sa, sb), 1e-9)
 
 
 def _combined_where_both(tr, ctx, cur_fits, splits, log) -> bool:
