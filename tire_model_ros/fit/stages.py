@@ -218,13 +218,23 @@ def _spread(x: np.ndarray | None) -> float:
     return float(q[1] - q[0])
 
 
-def _levels(x: np.ndarray, step: float) -> int:
-    """Number of occupied bins of width ``step`` holding at least 5 % of the samples."""
+def _occupied(x: np.ndarray, step: float, share: float = 0.02) -> np.ndarray:
+    """Centres of the bins of width ``step`` holding at least ``share`` of the finite values
+    (a sweep at a load of its own is a few per cent of a session)."""
     x = x[np.isfinite(x)]
     if len(x) == 0 or step <= 0:
-        return 0
-    _, counts = np.unique(np.round(x / step), return_counts=True)
-    return int(np.sum(counts >= 0.05 * len(x)))
+        return np.zeros(0)
+    bins, counts = np.unique(np.round(x / step), return_counts=True)
+    return bins[counts >= share * len(x)] * step
+
+
+def _range(x: np.ndarray) -> float:
+    return float(np.ptp(x)) if len(x) else 0.0
+
+
+def _levels(x: np.ndarray, step: float) -> int:
+    """Number of occupied bins of width ``step`` (``_occupied``)."""
+    return len(_occupied(x, step))
 
 
 def _cat(series: Sequence[WheelSeries], name: str) -> np.ndarray | None:
@@ -245,7 +255,7 @@ def data_conditions(model, series: Sequence[WheelSeries]) -> dict[str, Any]:
     dT_spread = _spread(T) / T0 if T is not None else 0.0
     return {
         "load_levels": _levels(Fz, 0.1 * fz0),
-        "load_varies": _spread(Fz) > 0.15 * fz0,
+        "load_varies": _range(_occupied(Fz, 0.05 * fz0)) > 0.15 * fz0,
         "camber_varies": _spread(gamma) > math.radians(0.5),
         "pressure_varies": dpi_spread > 0.03,
         "pressure_wide": dpi_spread > 0.15 and _levels(p, 0.05 * p0) >= 3
