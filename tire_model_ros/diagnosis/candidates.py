@@ -524,7 +524,8 @@ class SpeedTable(Component):
 class FrictionStep(Component):
     """A step in friction at a fitted time (belt or road change between runs).
 
-    mu scale = 1 - d H(t - t_c), with H a logistic of width STEP_WIDTH_S. The cost is flat in
+    mu scale = 1 - d H(t - t_c), with H a logistic of width STEP_WIDTH_S (after ``settle``, a
+    ramp across the gap between fitted sweeps that holds t_c). The cost is flat in
     t_c across a pause (no force there) and has a local minimum at each one, so the fit
     starts from every pause (at most MAX_STARTS of them, evenly picked), where a change
     between runs happens, and keeps the best.
@@ -552,12 +553,16 @@ class FrictionStep(Component):
         if len(mids) > self.MAX_STARTS:
             mids = [mids[i] for i in np.linspace(0, len(mids) - 1, self.MAX_STARTS).astype(int)]
         self.starts = [{"t_step_s": m} for m in mids]
+        self.gap: tuple[float, float] | None = None  # set by ``settle``: where t_c may lie
 
     def settle(self, x, ctx, rows):
         """The change point to the middle of the gap between the fitted sweeps it lies in.
 
-        Between two fitted sweeps (pauses, held-out sweeps) the cost is flat in t_c; where
-        the optimiser stopped is arbitrary, the middle errs least either way.
+        Between two fitted sweeps (pauses, held-out sweeps) the cost is flat in t_c: the data
+        place the change anywhere in the gap. Its time is reported at the middle, and across
+        the gap the model predicts the expected friction for a change time uniform in it (a
+        linear ramp): a sweep in the gap that the fit did not see is then never given the
+        wrong side of the step in full.
         """
         tc = float(x[0])
         seen = np.concatenate(
@@ -571,12 +576,17 @@ class FrictionStep(Component):
         before, after = seen[seen < tc], seen[seen >= tc]
         if len(before) and len(after):
             x = np.array(x, dtype=float)
-            x[0] = 0.5 * (float(before.max()) + float(after.min()))
+            self.gap = (float(before.max()), float(after.min()))
+            x[0] = 0.5 * sum(self.gap)
         return x
 
     def mu_scale(self, x, ctx, w):
-        z = np.clip((w.t - float(x[0])) / self.STEP_WIDTH_S, -50.0, 50.0)
-        return 1.0 - float(x[1]) / (1.0 + np.exp(-z))
+        tc, d = float(x[0]), float(x[1])
+        lo, hi = self.gap if self.gap and self.gap[0] <= tc <= self.gap[1] else (tc, tc)
+        if hi - lo > self.STEP_WIDTH_S:
+            return 1.0 - d * np.clip((w.t - lo) / (hi - lo), 0.0, 1.0)
+        z = np.clip((w.t - tc) / self.STEP_WIDTH_S, -50.0, 50.0)
+        return 1.0 - d / (1.0 + np.exp(-z))
 
 
 class Wear(Component):

@@ -38,6 +38,13 @@ MIN_RARE_PER_FOLD = 2
 # differently fitted models, whose differences add to the sweeps' scatter (a real ply-steer
 # offset on lateral_sweeps read 2.1 standard errors apart).
 OFFSET_FOLDS_Z = 3.0
+# An offset read at rest smaller than this many noise sigmas is not told apart from the
+# zero-slip force that the other effects' fits leave (the rig's grip scales its zero-slip
+# force, the TTX/TTY terms do not: 25-35 N on a 6.7 kN tyre, sigma 21 N).
+OFFSET_MIN_SIGMA = 2.0
+# An offset's reading may differ early/late or cold/hot by this share of its size before the
+# difference (if also significant) says that it is not a constant.
+OFFSET_REL_TOL = 0.25
 REST_KAPPA, REST_ALPHA = 0.002, np.radians(0.2)  # slip at rest: where an offset is read
 # Share of a combined-slip candidate's held-out improvement that must come from the samples
 # where both slips are non-zero (the only place its terms act).
@@ -284,9 +291,9 @@ def _rare_folds(rare: list[tuple[str, tuple] | None], rng: np.random.Generator) 
     stay together). Rare sweeps alternate, per kind, between the two selection folds, so
     that every selection fit sees one and predicts another. A stratum (a kind and the
     conditions it varies: pressure, camber) with enough rare sweeps that each selection fold
-    keeps MIN_RARE_PER_FOLD of them also gives one, at an interior condition (the held-out
-    test interpolates, as the fit does; the kinds at different conditions), to the final
-    held-out fold, so the final figures test the effect where it acts.
+    keeps MIN_RARE_PER_FOLD of them also gives one to the final held-out fold: the interior
+    condition farthest from the usual one (the held-out test interpolates, as the fit does, and
+    sees the effect where it is strongest; the kinds at different conditions).
     """
     runs: list[tuple[str, tuple, list[int]]] = []
     last: dict[str, int] = {}  # kind -> its latest run
@@ -309,8 +316,9 @@ def _rare_folds(rare: list[tuple[str, tuple] | None], rng: np.random.Generator) 
         levels = sorted({runs[k][1] for k in ks})[1:-1]
         free = [c for c in levels if c not in taken] or levels
         if len(ks) >= 2 * MIN_RARE_PER_FOLD + 1 and free:
-            held.add(next(k for k in ks if runs[k][1] == free[0]))
-            taken.add(free[0])
+            far = max(free, key=lambda cond: sum(map(abs, cond)))  # farthest from usual
+            held.add(next(k for k in ks if runs[k][1] == far))
+            taken.add(far)
     out: dict[int, int] = {}
     turn: dict[str, int] = {}
     for k, (kind, _, js) in enumerate(runs):
@@ -739,32 +747,30 @@ def _constant_offset(tr, ctx, cur, splits, log) -> sel.Trial | None:
 
 
 def _inconstant_channels(tr, ctx, cur_fits, splits, log) -> set[str]:
-    """Channels whose offset is not a constant at zero slip (PHYSICS.md).
+    """Channels whose offset is not a constant at zero slip (PHYSICS.md), or is too small to
+    be read there.
 
     Sweeps are the units (rows are autocorrelated); "agree" is within two standard errors.
 
     - Read at rest in slip on the held-out sweeps of each selection fold, with the current
       model (without the offset) fitted on the other fold, the offset is the same: it is a
-      property of the session, not of how the other effects were fitted.
+      property of the session, not of how the other effects were fitted. It is at least
+      OFFSET_MIN_SIGMA noise sigmas.
     - Per held-out sweep, the mean residual at rest of the model with the offset is the
       offset that sweep alone would want on top. Its means over the early and the late sweeps
-      (and, when the model has a temperature, over the cold and the hot ones) agree: an
-      offset does not follow the session or the heating.
+      (and, when the model has a temperature, over the cold and the hot ones) agree, or differ
+      by less than OFFSET_REL_TOL of the offset: an offset does not follow the session or the
+      heating.
     """
-    bad: set[str] = set()
     read: dict[tuple[int, str], list[tuple[float, float]]] = {
         (wi, ch): [] for wi in range(len(ctx.wheels)) for ch in tr.component.channels
     }
+    moves: dict[tuple[int, str], list[tuple[str, float, float]]] = {k: [] for k in read}
     for (_, test), f, f0 in zip(splits, tr.fits, cur_fits, strict=True):
         for wi, (w, r) in enumerate(zip(ctx.wheels, test, strict=True)):
             out = cd.predict(f.components, f.x, ctx, wi, np.arange(w.n))
             out0 = cd.predict(f0.components, f0.x, ctx, wi, np.arange(w.n))
-            inp = dict(w.inputs)
-            for c, xc in zip(f.components, cd.split_x(f.components, f.x), strict=True):
-                c.inputs(xc, ctx, w, inp)
-            states = {"time": w.t}
-            if inp["T"] is not None and np.ptp(inp["T"]) > 1.0:
-                states["temperature"] = inp["T"]
+            states = _offset_states(f, ctx, w)
             sweeps = [
                 _at_rest(w, np.intersect1d(np.concatenate([w.segments[i].index for i in b]), r))
                 for b in _blocks(w.segments, w.t)
@@ -780,24 +786,48 @@ def _inconstant_channels(tr, ctx, cur_fits, splits, log) -> set[str]:
                 read[(wi, ch)].append(_mean_se(np.array([np.mean(e0[idx]) for idx in keep])))
                 for label, x in states.items():
                     d, z = _split_difference(off, np.array([np.mean(x[idx]) for idx in keep]))
-                    if z > sel.MIN_T_ALT:
-                        log.append(
-                            f"offset on {ch} rejected: {w.prefix} residual at rest differs "
-                            f"by {label} ({d:+.1f} N, {z:.1f} standard errors)"
-                        )
-                        bad.add(ch)
-    for (wi, ch), ms in read.items():
-        if len(ms) == 2 and all(math.isfinite(se) for _, se in ms):
-            (m0, s0), (m1, s1) = ms
-            z = abs(m1 - m0) / max(math.hypot(s0, s1), 1e-9)
-            if z > OFFSET_FOLDS_Z:
-                log.append(
-                    f"offset on {ch} rejected: {ctx.wheels[wi].prefix} read at rest without it, "
-                    f"the two folds' sweeps disagree ({m0:+.1f} vs {m1:+.1f} N, {z:.1f} "
-                    "standard errors): it depends on how the other effects were fitted"
-                )
-                bad.add(ch)
-    return bad
+                    moves[(wi, ch)].append((label, d, z))
+    return {key[1] for key, ms in read.items() if _offset_refused(key, ms, moves[key], ctx, log)}
+
+
+def _offset_states(f: sel.Fit, ctx: cd.Context, w: cd.Wheel) -> dict[str, np.ndarray]:
+    """The states an offset must not follow: time, and the fit's temperature if it has one."""
+    inp = dict(w.inputs)
+    for c, xc in zip(f.components, cd.split_x(f.components, f.x), strict=True):
+        c.inputs(xc, ctx, w, inp)
+    states = {"time": w.t}
+    if inp["T"] is not None and np.ptp(inp["T"]) > 1.0:
+        states["temperature"] = inp["T"]
+    return states
+
+
+def _offset_refused(key, ms, moves, ctx, log) -> bool:
+    """Whether the offset of wheel ``key[0]``, channel ``key[1]`` fails a test of
+    ``_inconstant_channels`` (``ms``: the two folds' readings; ``moves``: its differences by
+    state), logging the reason."""
+    ch, prefix = key[1], ctx.wheels[key[0]].prefix
+    if len(ms) != 2 or not all(math.isfinite(se) for _, se in ms):
+        return False
+    (m0, s0), (m1, s1) = ms
+    size = 0.5 * abs(m0 + m1)
+    z = abs(m1 - m0) / max(math.hypot(s0, s1), 1e-9)
+    if z > OFFSET_FOLDS_Z:
+        log.append(
+            f"offset on {ch} rejected: {prefix} read at rest without it, the two folds' "
+            f"sweeps disagree ({m0:+.1f} vs {m1:+.1f} N, {z:.1f} standard errors): it "
+            "depends on how the other effects were fitted"
+        )
+        return True
+    if size < OFFSET_MIN_SIGMA * ctx.sigma[ch]:
+        log.append(f"offset on {ch} rejected: {prefix} reads {size:.1f} N at rest, below "
+                   f"{OFFSET_MIN_SIGMA:g} noise sigmas ({ctx.sigma[ch]:.1f} N)")
+        return True
+    for label, d, zd in moves:
+        if zd > sel.MIN_T_ALT and abs(d) > OFFSET_REL_TOL * size:
+            log.append(f"offset on {ch} rejected: {prefix} residual at rest differs by "
+                       f"{label} ({d:+.1f} N of {size:.1f} N, {zd:.1f} standard errors)")
+            return True
+    return False
 
 
 def _mean_se(y: np.ndarray) -> tuple[float, float]:
