@@ -10,9 +10,10 @@ Programmes
 ``flat_trac``
     An MTS Flat-Trac style session: warm-up, reference sweeps repeated through the session,
     pure lateral sweeps at 0.5/1/1.5 FNOMIN, pure longitudinal sweeps at the same loads, a
-    pressure block (0.8/1.1/1.2/0.9 NOMPRES; only when the pressure channel is recorded), two
-    sweep rates, two speeds, a reversed sweep, combined-slip sweeps (alpha held, kappa swept), a
-    camber block, a heat soak (raises the bulk temperature) and a cooling pause.
+    pressure block (0.8/1.1/0.7/1.2/0.9 NOMPRES; only when the pressure channel is recorded),
+    two sweep rates, two speeds, a reversed sweep, combined-slip sweeps (alpha held, kappa
+    swept), a camber block (2/4/1/-2/3 deg), a heat soak (raises the bulk temperature) and a
+    cooling pause.
 ``lateral_sweeps``, ``longitudinal_sweeps``, ``combined``, ``camber``, ``pressure``
     Smaller focused sessions (2-4 min).
 ``transient``
@@ -25,7 +26,8 @@ Options (``programme_options``): ``repeats`` (int, default 1: the main body is r
 ``rate_scale`` (sweep rates x this; <1 makes longer sessions), ``amplitude_deg`` (lateral
 sweep amplitude, default 10), ``kappa_max`` (longitudinal amplitude, default 0.15),
 ``speed`` [m/s] (default LONGVL), ``ambient_C`` (default 25), ``vary_pressure`` (default: True
-unless the pressure channel is omitted), ``laps`` (track, default 2).
+unless the pressure channel is omitted), ``laps`` (track, default 2), ``soak_s`` and
+``soak_deg`` (flat_trac's heat soak: duration, default 25 s, and slip angle, default 5 deg).
 """
 
 from __future__ import annotations
@@ -283,7 +285,7 @@ def _flat_trac(b: RigBuilder, opt: dict) -> None:
         if opt["vary_pressure"]:
             # Four pressures (two are needed per side to see the quadratic MF terms), not in
             # monotone order, so that pressure is not confounded with the session's heating.
-            for f in (0.8, 1.1, 1.2, 0.9):
+            for f in (0.8, 1.1, 0.7, 1.2, 0.9):
                 b.set_state(p=f * ty.NOMPRES, duration_s=3.0)
                 b.lateral_sweep(A, label=f"lateral p={f:g}NOMPRES")
                 b.pause(2.0)
@@ -302,13 +304,13 @@ def _flat_trac(b: RigBuilder, opt: dict) -> None:
         for a in (3.0, -6.0):  # combined slip
             b.combined_sweep(a, kappa_max=0.8 * kmax)
             b.pause(2.0)
-        for g in (2.0, 4.0):  # camber
+        for g in (2.0, 4.0, 1.0, -2.0, 3.0):  # camber; five levels, so one can be held out
             b.set_state(gamma=g * DEG)
             b.lateral_sweep(A, label=f"lateral gamma={g:g}deg")
             b.pause(2.0)
         b.set_state(gamma=0.0)
         b.reference_sweep(label=f"reference {rep}b")
-        b.heat_soak(25.0)
+        b.heat_soak(float(opt["soak_s"]), alpha_deg=float(opt["soak_deg"]))
         b.reference_sweep(label=f"reference {rep}c (hot)")
         b.pause(30.0, label="cooling pause")
         b.reference_sweep(label=f"reference {rep}d (after pause)")
@@ -436,7 +438,8 @@ _RIG: dict[str, Callable[[RigBuilder, dict], None]] = {
 PROGRAMMES = (*_RIG, "track")
 
 _DEFAULTS = {"repeats": 1, "rate_scale": 1.0, "amplitude_deg": 10.0, "kappa_max": 0.15,
-             "speed": None, "ambient_C": 25.0, "vary_pressure": None, "laps": 2}
+             "speed": None, "ambient_C": 25.0, "vary_pressure": None, "laps": 2,
+             "soak_s": 25.0, "soak_deg": 5.0}
 
 
 def _options(tyre: TyreInfo, options: Mapping | None, omit) -> dict:
@@ -452,6 +455,8 @@ def _options(tyre: TyreInfo, options: Mapping | None, omit) -> dict:
     opt["laps"] = int(opt["laps"])
     if opt["repeats"] < 1 or opt["laps"] < 1 or float(opt["rate_scale"]) <= 0:
         raise ValueError("programme options: repeats and laps must be >= 1, rate_scale > 0")
+    if not 1.0 <= float(opt["soak_s"]) <= 3600.0 or not 0.0 < float(opt["soak_deg"]) <= 20.0:
+        raise ValueError("programme options: soak_s must be in [1, 3600] s, soak_deg in (0, 20]")
     opt["rate_scale"] = float(opt["rate_scale"])
     return opt
 
