@@ -18,6 +18,7 @@ import pytest
 from tire_model_ros.diagnosis import Diagnosis, diagnose
 from tire_model_ros.diagnosis.thermal import relaxed_slip, thermal_state_K
 from tire_model_ros.model import TireModel
+from tire_model_ros.model.states import Effects
 from tire_model_ros.rig import simulate_session
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -106,8 +107,12 @@ def test_concealed_temperature_is_named_first_and_halves_heldout_error(model):
     assert not (diag.heldout_mask[prefix] & diag.train_mask[prefix]).any()
     assert set(diag.predictions[prefix]) >= {"baseline_Fy", "improved_Fy"}
     _check_json(diag.to_json())
-    # The improved model carries the fitted temperature coefficients.
+    # The improved model carries the fitted temperature coefficients, and its effects file
+    # the hidden tread node (the node runs it when no temperature topic is fresh).
     assert diag.improved_model.params["TTY3"] != model.params["TTY3"]
+    fx = diag.node_effects().for_wheel(prefix)
+    assert fx.thermal.tau_s == pytest.approx(first.parameters["tau_T_s"])
+    assert fx.thermal.gain_per_W == first.parameters["gain_K_per_W"] > 0
 
 
 def test_relaxation_is_named(model):
@@ -145,6 +150,7 @@ def test_friction_step_is_named_drift_and_located(model):
     between = (t > min(at, fitted) + 1.0) & (t < max(at, fitted) - 1.0)
     assert not np.any(between & moving & diag.train_mask[prefix]), (at, fitted)
     assert first.parameters["step_mu_loss"] == pytest.approx(0.07, abs=0.015)
+    assert any(n.startswith("drift") for n in diag.node_effects().not_carried)  # history
     # Against the noise-free twin: the model error falls. Not to zero here: the sweep right
     # after the step is held out, so where in its gap the step falls is unknowable.
     twin, _ = _session(model, {"mu_step": {"ratio": 0.93}, "noise": False})
@@ -212,6 +218,8 @@ def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
         assert 0.0 <= clean < 0.5 * raw, (ch, clean, raw)
     assert (report / "improved.tir").exists()
     TireModel.from_file(report / "improved.tir")  # a readable property file
+    effects = Effects.read(report / "improved.effects.json")  # beside it: nothing to carry
+    assert effects.tir == "improved.tir" and effects.for_wheel(wheels[0].prefix).thermal is None
     # Never over an existing output unless asked.
     res2 = subprocess.run(cmd, capture_output=True, text=True, timeout=240, env=env, check=False)
     assert res2.returncode == 1 and "exists" in res2.stderr

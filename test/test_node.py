@@ -655,3 +655,52 @@ def test_signal_clean_exit(request, sig):
     rc, log = proc.stop(sig, timeout=15)
     assert rc == 0, log
     assert "Traceback" not in log, log
+
+
+# ------------------------------------------------------------------ effects file (hidden states)
+def test_effects_file_runs_hidden_states_live_and_bad_file_rejected(client, tmp_path):
+    """With an effects file the node runs the hidden states on the slip stamps: its forces
+    equal EffectState + the model offline on the same messages, and differ from the plain
+    model (the tread heats). A bad file is rejected naming file and key; "" switches off."""
+    from tire_model_ros.model.states import Effects, EffectState, Node, WheelEffects
+
+    fx = WheelEffects(T_amb_C=25.0, thermal=Node(4.0, 5e-3), bulk=Node(60.0, 2e-5),
+                      bulk_mu_loss=0.3, offsets={"Fy": (20.0, 100.0)})
+    good = tmp_path / "improved.effects.json"
+    good.write_text(Effects({"/fx": fx}, "default.tir").to_json())
+    proc = start_node(["-r", "__node:=tire_fx", "-p", f"tir_file:={DEFAULT_TIR}",
+                       "-p", "wheels:=['/fx']", "-p", "timeout.load:=0.0",
+                       "-p", "timeout.velocity:=0.0"], client)
+    try:
+        wheel = Wheel(client, "/fx")
+        client.wait_matched(wheel.pubs(), 90, proc)
+        model = TireModel.from_file(DEFAULT_TIR)
+        nom = Nominal.from_params(model.params)
+        inputs = {"Fz": 5000.0, "p": None, "T": None, "Vx": 15.0}
+        wheel.settle(model, inputs)  # no pressure or temperature topic: nominal values
+        res = client.set_parameters("/tire_fx", {"effects_file": str(good)})
+        assert res[0].successful, res[0].reason
+        slips = [(0.1 * math.sin(i / 5), 0.12 * math.sin(i / 7), 0.0) for i in range(40)]
+        stamps = wheel.send_slips(slips)
+        got = wheel.results(stamps)
+        st, want = EffectState(fx), []
+        for (sec, ns), (kappa, alpha, gamma) in zip(stamps, slips, strict=True):
+            k, a, T, p, s = st.inputs(sec + 1e-9 * ns, kappa, alpha, 15.0, None, None,
+                                      nom.p, nom.T)
+            out = model.evaluate_one(5000.0, k, a, gamma, 15.0, p, T)
+            want.append(st.outputs(out, s, 5000.0, kappa, alpha, 15.0, nom.Fz))
+        np.testing.assert_allclose(got, np.array(want), rtol=1e-9, atol=1e-6)
+        plain = expected(model, inputs, slips)
+        assert st.temperature_C > 30.0 and np.max(np.abs(got[:, 1] - plain[:, 1])) > 100.0
+
+        bad = tmp_path / "bad.effects.json"
+        bad.write_text(good.read_text().replace('"tau_s": 4.0', '"tau_s": -4.0'))
+        res = client.set_parameters("/tire_fx", {"effects_file": str(bad)})
+        assert not res[0].successful
+        assert "bad.effects.json" in res[0].reason and "thermal.tau_s" in res[0].reason
+        assert client.get_parameters("/tire_fx", ["effects_file"])["effects_file"] == str(good)
+        res = client.set_parameters("/tire_fx", {"effects_file": ""})
+        assert res[0].successful, res[0].reason
+        check(wheel, model, inputs, slips)
+    finally:
+        proc.stop()

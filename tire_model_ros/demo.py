@@ -4,11 +4,12 @@
    topic in the recording (the heating is concealed).
 2. Diagnose it against the default .tir: name what the model misses, fit it, and measure the
    held-out RMSE before and after.
-3. Write the improved .tir, the diagnosis JSON and the report (Markdown + plots).
-4. Run the ROS 2 node (``tire-model-node``) with the improved .tir, replay part of the session
-   (``tire-model play``, with the tyre temperature the diagnosis inferred as its temperature
-   topic) and record the node's forces (``tire-model record``); compare them with the improved
-   model evaluated offline on the same inputs, and with the measured forces.
+3. Write the improved .tir, its effects file (the hidden states a .tir cannot hold), the
+   diagnosis JSON and the report (Markdown + plots).
+4. Run the ROS 2 node (``tire-model-node``) with the improved .tir and its effects file, replay
+   the session as recorded, still without temperature (``tire-model play``, decimated), and
+   record the node's forces (``tire-model record``); compare them with the same improved model
+   run offline on the same messages, and with the measured forces.
 
 Everything goes into ``./out/demo/run-<UTC time>/`` (or ``--out DIR``, which must not exist or
 be empty). ROS traffic stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) in a
@@ -35,10 +36,10 @@ SEED = 7
 # The node must reproduce the improved model: its forces are computed by the same code from the
 # same .tir, so anything beyond float round-off of the inputs in transit is a failure.
 MATCH_TOL_N = 1.0
-# Part of the session replayed through the node [s]: enough sweeps to mean something, short
-# enough to replay in real time within the demo's few minutes.
-REPLAY_S = 60.0
-REPLAY_RATE = 2.0  # play at twice real time: 30 s of wall time
+# The whole session is replayed through the node (its hidden states build up over it), every
+# REPLAY_EVERY-th slip sample (20 Hz of the rig's 100 Hz), at REPLAY_RATE times real time.
+REPLAY_EVERY = 5
+REPLAY_RATE = 10.0
 
 
 _STEP = {"now": "set-up"}
@@ -152,13 +153,21 @@ def step_diagnose(bag: Path, tir: Path, out: Path):
         a = fit.get("heldout_improved", {}).get(c, {}).get("rmse")
         if b is not None and a is not None:
             say("2", f"held-out {c} RMSE {b:.0f} N -> {a:.0f} N ({100 * (1 - a / b):.0f} % less)")
-    from tire_model_ros.cli.diagnose_cmd import improved_tir
+    from tire_model_ros.cli.diagnose_cmd import effects_path, improved_tir
 
     improved = out / "improved.tir"
     write_tir(improved_tir(diag, TireModel.from_file(tir).tir), improved)
+    effects = diag.node_effects(improved.name)
+    effects_path(improved).write_text(effects.to_json())
     (out / "diagnosis.json").write_text(json.dumps(diag.to_json(), indent=2) + "\n")
-    say("2", f"wrote {improved} and {out / 'diagnosis.json'}")
+    say("2", f"wrote {improved}, {effects_path(improved).name} (hidden states for the node: "
+             f"{', '.join(_carried(effects)) or 'none'}) and {out / 'diagnosis.json'}")
     return wheels, diag, improved
+
+
+def _carried(effects) -> list[str]:
+    wheel = next(iter(effects.wheels.values()))
+    return [k for k, v in wheel.to_dict().items() if k != "T_amb_C" and v]
 
 
 def step_report(diag, wheels, out: Path) -> None:
@@ -170,23 +179,18 @@ def step_report(diag, wheels, out: Path) -> None:
     say("3", f"{path} with {len(pngs)} plots: {', '.join(pngs)}")
 
 
-def replay_bag(wheels: dict, diag, out: Path) -> tuple[Path, dict]:
-    """The last REPLAY_S of the session, with the inferred temperature as its T channel."""
+def replay_bag(wheels: dict, out: Path) -> tuple[Path, dict]:
+    """The session as recorded (no temperature), every REPLAY_EVERY-th sample."""
     from tire_model_ros.recording.bag import write_recording
 
     parts = {}
     for prefix, w in wheels.items():
-        keep = w.t >= w.t[-1] - REPLAY_S
-        T = (diag.inferred.get(prefix) or {}).get("T")
+        keep = np.arange(0, len(w), REPLAY_EVERY)
         part = w.select(keep)
-        if T is not None:
-            part = replace(part, T=np.asarray(T)[keep])
-        part.meta = {}  # no stale stamps: write_recording takes them from t
+        part.meta = {"demo_keep": keep}  # where each replayed sample sits in the session
         parts[prefix] = part
     bag = out / "replay"
-    write_recording(bag, list(parts.values()))
-    for prefix, w in wheels.items():  # where each replayed sample sits in the session
-        parts[prefix].meta["demo_keep"] = np.flatnonzero(w.t >= w.t[-1] - REPLAY_S)
+    write_recording(bag, [replace(w, meta={}) for w in parts.values()])  # stamps from t
     return bag, parts
 
 
@@ -211,21 +215,25 @@ def _stop(proc: subprocess.Popen, timeout: float = 10.0) -> None:
 
 
 def step_node(wheels: dict, diag, tir: Path, improved: Path, out: Path) -> bool:
-    say("4 run the node with the improved .tir on the recording")
-    bag, parts = replay_bag(wheels, diag, out)
-    say("4", f"replay bag {bag.name}: the last {REPLAY_S:.0f} s of the session with the "
-             "temperature inferred by the diagnosis as P/temperature")
+    say("4 run the node with the improved .tir and its effects file on the recording")
+    from tire_model_ros.cli.diagnose_cmd import effects_path
+
+    bag, parts = replay_bag(wheels, out)
+    n_msgs = sum(len(w) for w in parts.values())
+    span = max(float(w.t[-1] - w.t[0]) for w in parts.values())
+    say("4", f"replay bag {bag.name}: the whole session ({span:.0f} s), every "
+             f"{REPLAY_EVERY}th slip sample, no temperature topic (as recorded)")
     env = ros_env()
     say("4", f"ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}, ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST")
     prefixes = list(parts)
     logs = out / "logs"
     logs.mkdir(exist_ok=True)
     node_cmd = [*tool("tire-model-node"), "--ros-args", "-p", f"tir_file:={improved}",
+                "-p", f"effects_file:={effects_path(improved)}",
                 "-p", f"wheels:={json.dumps(prefixes)}"]
     forces_bag = out / "node_forces"
-    n_msgs = sum(len(w) for w in parts.values())
     rec_cmd = [*tool("tire-model"), "record", "-o", str(forces_bag), "--wheels", *prefixes,
-               "--count", str(n_msgs), "--duration", str(REPLAY_S / REPLAY_RATE + 60)]
+               "--count", str(n_msgs), "--duration", str(span / REPLAY_RATE + 60)]
     play_cmd = [*tool("tire-model"), "play", str(bag), "--rate", str(REPLAY_RATE),
                 "--wait", "10"]
     procs: list[subprocess.Popen] = []
@@ -240,7 +248,7 @@ def step_node(wheels: dict, diag, tir: Path, improved: Path, out: Path) -> bool:
         for p, name in zip(procs, ("node", "record"), strict=True):
             if p.poll() is not None:
                 raise RuntimeError(f"{name} exited early ({p.returncode}); see {logs}/{name}.log")
-        out_play = run(play_cmd, "4", REPLAY_S / REPLAY_RATE * 4 + 60, env)
+        out_play = run(play_cmd, "4", span / REPLAY_RATE * 4 + 60, env)
         say("4", out_play.strip().splitlines()[-1] if out_play.strip() else "played")
         try:  # the recorder stops by itself after one force message per slip message
             procs[1].wait(timeout=10.0)
@@ -255,6 +263,27 @@ def step_node(wheels: dict, diag, tir: Path, improved: Path, out: Path) -> bool:
     if not forces_bag.exists():
         raise RuntimeError(f"the recorder wrote no bag at {forces_bag}; see {logs}/record.log")
     return compare(forces_bag, parts, improved, tir, diag)
+
+
+def offline(model, effects, w) -> np.ndarray:
+    """The node's computation for every sample of ``w``, offline: the improved model with the
+    effects' hidden states stepped on the same stamps (rows Fx, Fy, Fz, Mx, My, Mz)."""
+    from tire_model_ros.model.states import EffectState
+    from tire_model_ros.node.wheel import Nominal
+
+    nom = Nominal.from_params(model.params)
+    st = EffectState(effects)
+    Vx = w.Vx if w.Vx is not None else np.full(len(w), nom.Vx)
+    p = w.p if w.p is not None else [None] * len(w)
+    rows = np.empty((len(w), 6))
+    for i in range(len(w)):
+        k, a, T, p_i, s = st.inputs(float(w.t[i]), float(w.kappa[i]), float(w.alpha[i]),
+                                    float(Vx[i]), None, None if p[i] is None else float(p[i]),
+                                    nom.p, nom.T)
+        out = model.evaluate_one(float(w.Fz[i]), k, a, float(w.gamma[i]), float(Vx[i]), p_i, T)
+        rows[i] = st.outputs(out, s, float(w.Fz[i]), float(w.kappa[i]), float(w.alpha[i]),
+                             float(Vx[i]), nom.Fz)
+    return rows
 
 
 def _node_forces(forces_bag: Path, prefix: str, w) -> tuple[np.ndarray, np.ndarray]:
@@ -279,10 +308,13 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def compare(forces_bag: Path, parts: dict, improved: Path, tir: Path, diag) -> bool:
-    """Node forces against the improved .tir evaluated offline, and against the measurement."""
+    """Node forces against the improved model run offline, and against the measurement."""
+    from tire_model_ros.cli.diagnose_cmd import effects_path
     from tire_model_ros.model import TireModel
+    from tire_model_ros.model.states import Effects
 
     model = TireModel.from_file(improved)
+    effects = Effects.read(effects_path(improved))
     default = TireModel.from_file(tir)
     ok = True
     worst, answered = 0.0, 0
@@ -295,33 +327,30 @@ def compare(forces_bag: Path, parts: dict, improved: Path, tir: Path, diag) -> b
         if len(idx) == 0:
             return False
         sub = w.select(idx)
-        ref = model.evaluate(sub.Fz, sub.kappa, sub.alpha, sub.gamma, sub.Vx, sub.p, sub.T)
+        ref = offline(model, effects.for_wheel(prefix), w)[idx]
         old = default.evaluate(sub.Fz, sub.kappa, sub.alpha, sub.gamma, sub.Vx, sub.p, None)
         preds = diag.predictions.get(prefix, {})
         keep = w.meta["demo_keep"][idx]  # the replayed samples' place in the session
         for k, c in enumerate(("Fx", "Fy")):
-            dev = float(np.max(np.abs(node[:, k] - getattr(ref, c))))
+            dev = float(np.max(np.abs(node[:, k] - ref[:, k])))
             meas = getattr(sub, c)
-            say("4", f"{c}: node vs improved .tir evaluated offline: max |difference| "
+            say("4", f"{c}: node vs the improved model run offline: max |difference| "
                      f"{dev:.2g} N over {len(idx)} messages")
             full = preds.get(f"improved_{c}")
-            full_txt = ("" if full is None else f"; the diagnosis' whole improved model "
-                        f"(incl. effects a .tir cannot hold) {_rmse(full[keep], meas):.0f} N")
+            full_txt = ("" if full is None else f"; the diagnosis' improved model (hidden "
+                        f"states driven by the measured forces) {_rmse(full[keep], meas):.0f} N")
             say("4", f"{c}: RMSE against the measured {c} on the replay: node (improved .tir "
-                     f"+ inferred temperature) {_rmse(node[:, k], meas):.0f} N, default .tir "
+                     f"+ effects file) {_rmse(node[:, k], meas):.0f} N, default .tir "
                      f"{_rmse(getattr(old, c), meas):.0f} N{full_txt}")
             worst, answered = max(worst, dev), max(answered, len(idx))
             if not dev <= MATCH_TOL_N:
                 say("4", f"FAILED: the node's {c} differs from the improved model by more "
                          f"than {MATCH_TOL_N} N")
                 ok = False
-    outside = sorted({k for e in diag.effects for k in e.parameters if k not in model.params})
-    if outside:
-        say("4", "note: the .tir holds the refitted coefficients only; these fitted parameters "
-                 f"of the improved model have no .tir key and are not in the node: "
-                 f"{', '.join(outside)} (the temperature reaches the node as a topic)")
+    if effects.not_carried:
+        say("4", f"note: not carried by the effects file: {'; '.join(effects.not_carried)}")
     if ok:
-        say("4", f"=> the node's forces match the improved .tir model: largest difference "
+        say("4", f"=> the node's forces match the improved model: largest difference "
                  f"{worst:.1g} N over {answered} force messages (tolerance {MATCH_TOL_N} N)")
     return ok
 

@@ -56,6 +56,12 @@ def write_json_atomic(obj: dict, path: str | os.PathLike, overwrite: bool = Fals
     write_atomic(path, json.dumps(obj, indent=2, allow_nan=False) + "\n", overwrite=overwrite)
 
 
+def effects_path(tir_path: str | os.PathLike) -> Path:
+    """The effects file written beside an improved .tir: ``improved.tir`` ->
+    ``improved.effects.json``."""
+    return Path(tir_path).with_suffix(".effects.json")
+
+
 def improved_tir(diag, source_tir):
     """TirData of the improved model: fitted coefficients, effect parameters as comments."""
     notes = ["! tire-model diagnose: improved model (fitted coefficients below)."]
@@ -82,7 +88,8 @@ def run(args) -> int:
         raise ValueError("--reference and --reference-json go together")
     if args.reference and not Path(args.reference).exists():  # before the minutes of diagnosis
         raise FileNotFoundError(f"{args.reference}: no such file or directory")
-    for path in (args.json, args.out_tir, args.reference_json):
+    out_effects = effects_path(out_tir) if out_tir else None
+    for path in (args.json, args.out_tir, args.reference_json, args.out_tir and out_effects):
         _check_free(path, args.force)
     if (
         args.report
@@ -133,5 +140,11 @@ def run(args) -> int:
             overwrite=args.force or bool(args.report and not args.out_tir),
         )
         print(f"wrote {out_tir}")
+        effects = diag.node_effects(Path(out_tir).name)
+        write_atomic(out_effects, effects.to_json(),
+                     overwrite=args.force or bool(args.report and not args.out_tir))
+        print(f"wrote {out_effects} (hidden states for the node's effects_file"
+              + (f"; not carried: {'; '.join(effects.not_carried)})" if effects.not_carried
+                 else ")"))
     sys.stdout.flush()
     return 0

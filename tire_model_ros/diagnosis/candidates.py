@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tire_model_ros.model.states import Node
+
 from .thermal import delayed, gas_pressure_Pa, relaxed_slip, thermal_state_K
 
 CHANNELS = ("Fx", "Fy", "Mz")
@@ -112,6 +114,13 @@ class Component:
         value (the fit has converged on ``rows``)."""
         return x
 
+    def carry(self, x: np.ndarray, ctx: Context, wi: int) -> dict | None:
+        """What a forward model of wheel ``wi`` runs of this part, as keyword arguments of
+        :class:`~tire_model_ros.model.states.WheelEffects` ({}: nothing beyond the .tir
+        coefficients); None: a part that no forward model carries (a session's history, a
+        recording's artefact)."""
+        return {}
+
     @property
     def n(self) -> int:
         return len(self.pnames)
@@ -181,6 +190,9 @@ class ThermalHidden(Component):
         P = w.P[w.scramble] if self.mode == "scrambled" else w.P
         inp["T"] = ctx.T_amb + thermal_state_K(P, w.t, self._tau(x), ctx.k_thermal)
 
+    def carry(self, x, ctx, wi):
+        return {"T_amb_C": ctx.T_amb, "thermal": Node(self._tau(x), ctx.k_thermal)}
+
 
 class ThermalBulk(Component):
     """Extension of a hidden thermal node: the slow (carcass) node's loss of grip.
@@ -210,6 +222,10 @@ class ThermalBulk(Component):
         tau = float(x[0])
         slow = thermal_state_K(w.P, w.t, tau, tau / ctx.E_ref)
         return 1.0 - float(x[1]) * slow
+
+    def carry(self, x, ctx, wi):
+        tau = float(x[0])
+        return {"bulk": Node(tau, tau / ctx.E_ref), "bulk_mu_loss": float(x[1])}
 
 
 class ThermalRecorded(Component):
@@ -255,6 +271,9 @@ class GasHidden(Component):
         rise = thermal_state_K(w.P, w.t, float(x[0]), float(x[1]) * 1e-3)
         p0 = inp["p"] if inp["p"] is not None else ctx.p_nom
         inp["p"] = gas_pressure_Pa(p0, rise, ctx.T_amb)
+
+    def carry(self, x, ctx, wi):
+        return {"T_amb_C": ctx.T_amb, "gas": Node(float(x[0]), float(x[1]) * 1e-3)}
 
 
 class PressureRecorded(Component):
@@ -330,6 +349,9 @@ class Relaxation(Component):
                 sk = self.kappa_ratio * float(v) * shape["kappa"]
                 inp["kappa"] = relaxed_slip(inp["kappa"], w.t, inp["V"], sk)
 
+    def carry(self, x, ctx, wi):
+        return None  # a simulator's own transient tyre model does this
+
 
 def _stiffness_shape(ctx: Context, w: Wheel) -> dict[str, np.ndarray]:
     """Kya(Fz)/Kya(FNOMIN) and Kxk(Fz)/Kxk(FNOMIN) of the file's model, per sample."""
@@ -356,6 +378,9 @@ class Delay(Component):
         tau = float(x[0])
         for key in ("kappa", "alpha", "gamma", "Fz"):
             inp[key] = delayed(inp[key], w.t, tau)
+
+    def carry(self, x, ctx, wi):
+        return None  # an artefact of the recording, not of the tyre
 
 
 # --- static terms ------------------------------------------------------------------------------
@@ -401,6 +426,16 @@ class Offset(Component):
                 out[ch] = out[ch] + float(v) * (w.t[rows] >= self.drift_at)
             else:  # N at FNOMIN, scaled with the load
                 out[ch] = out[ch] + float(v) * w.inputs["Fz"][rows] / ctx.base["FNOMIN"]
+
+    def carry(self, x, ctx, wi):
+        if self.drift_at is not None:
+            return None
+        offsets: dict[str, list[float]] = {}
+        for k, v in zip(self.pnames, x, strict=True):
+            kind, ch, i = k.split("_")
+            if int(i) == wi:
+                offsets.setdefault(ch, [0.0, 0.0])[kind != "offset"] = float(v)
+        return {"offsets": {ch: (a, b) for ch, (a, b) in offsets.items()}}
 
 
 class CoefRefit(Component):
@@ -517,8 +552,13 @@ class SpeedTable(Component):
         )
 
     def mu_scale(self, x, ctx, w):
-        knots = np.insert(np.asarray(x, float), self.ref, 1.0)
-        return np.interp(np.log(np.maximum(w.Vs, 1e-4)), self.lnV, knots)
+        return np.interp(np.log(np.maximum(w.Vs, 1e-4)), self.lnV, self._knots(x))
+
+    def _knots(self, x) -> np.ndarray:
+        return np.insert(np.asarray(x, float), self.ref, 1.0)
+
+    def carry(self, x, ctx, wi):
+        return {"speed_table": (tuple(map(float, self.lnV)), tuple(map(float, self._knots(x))))}
 
 
 class FrictionStep(Component):
@@ -588,6 +628,9 @@ class FrictionStep(Component):
         z = np.clip((w.t - tc) / self.STEP_WIDTH_S, -50.0, 50.0)
         return 1.0 - d / (1.0 + np.exp(-z))
 
+    def carry(self, x, ctx, wi):
+        return None  # the session's history
+
 
 class Wear(Component):
     """Never-recovering drift: friction scale linear in cumulative frictional work (wear)."""
@@ -604,6 +647,9 @@ class Wear(Component):
     def mu_scale(self, x, ctx, w):
         z = w.E / ctx.E_ref if self.driver == "work" else w.t / ctx.t_end
         return 1.0 - float(x[0]) * z
+
+    def carry(self, x, ctx, wi):
+        return None  # the session's history
 
 
 # --- the predictor -----------------------------------------------------------------------------

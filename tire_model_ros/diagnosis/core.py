@@ -20,6 +20,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from tire_model_ros.fit.sweeps import split_segments
+from tire_model_ros.model.states import Effects, WheelEffects
 
 from . import candidates as cd
 from . import selection as sel
@@ -98,6 +99,25 @@ class Diagnosis:
     def to_json(self) -> dict:
         """The INTERFACE.md diagnosis object."""
         return {"effects": [e.to_json() for e in self.effects], "fit": self.fit}
+
+    def node_effects(self, tir: str = "") -> Effects:
+        """The improved model's effects that a forward model runs per wheel (the node's
+        effects file, :mod:`tire_model_ros.model.states`), and the labels of those it cannot
+        (a friction step, wear, a delay, relaxation)."""
+        ctx = self.models["ctx"]
+        comps, x = self.models["improved"]
+        xs = cd.split_x(comps, x)
+        wheels, not_carried = {}, []
+        for wi, w in enumerate(ctx.wheels):
+            kw: dict = {}
+            for c, xc in zip(comps, xs, strict=True):
+                part = c.carry(xc, ctx, wi)
+                if part is None:
+                    not_carried.append(f"{c.name}: {c.label}")
+                else:
+                    kw.update(part)
+            wheels[w.prefix] = WheelEffects(**kw)
+        return Effects(wheels, tir, tuple(dict.fromkeys(not_carried)))
 
     def score_reference(self, wheels: Sequence) -> dict:
         """Held-out RMSE of the baseline and improved models against a twin recording.

@@ -59,6 +59,12 @@ def read_vector(data: bytes) -> tuple[int, float, float, float] | None:
     return end, x, y, z
 
 
+def read_stamp(data: bytes) -> float:
+    """header.stamp [s] of a message whose header ``read_vector`` accepted."""
+    sec, nanosec = struct.unpack_from("<iI", data, 4)
+    return sec + 1e-9 * nanosec
+
+
 def wrench_like(data: bytes, end: int, values: tuple[float, ...]) -> bytes:
     """A WrenchStamped with the header of ``data`` (bytes up to ``end``) and six values."""
     pad = _payload(end) - end

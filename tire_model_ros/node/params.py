@@ -29,6 +29,7 @@ PACKAGE = "tire_model_ros"
 GLOBAL_PARAMS = (
     "wheels",
     "tir_file",
+    "effects_file",
     "limits",
     "pressure_is_absolute",
     "ambient_pressure",

@@ -10,6 +10,11 @@ Parameters
 wheels : string[]            wheel prefixes (read-only), default ["wheel"]
 tir_file : string            shared model's .tir (default: the package's config/default.tir)
 <wheelkey>.tir_file : string a wheel's own .tir ("" = shared model); ``/car/rl`` -> ``car.rl``
+effects_file : string        hidden states of an improved model, written by ``tire-model
+                             diagnose`` beside its .tir ("" = none, the default): a hidden
+                             tread/gas node stands in for a temperature/pressure that is not
+                             fresh, a carcass node and a speed table scale friction, offsets
+                             add (per wheel prefix; a one-wheel file serves every wheel)
 <NAME>, <wheelkey>.<NAME> : double
                              every numeric coefficient of the shared / a wheel's own model
 limits : bool                saturate inputs to the file's ranges, low-speed model (default true)
@@ -27,7 +32,8 @@ cpus : int[]                 CPU affinity of the node's threads (read-only); def
 Live changes: a coefficient change builds a new immutable model with ``with_params`` inside the
 on-set callback and swaps one reference, so every message is computed with the old or the new
 model, never a mix; a failed build rejects the change (the old model keeps running). Setting a
-``tir_file`` (even to the same path) reloads that file; coefficients set in the same atomic
+``tir_file`` or ``effects_file`` (even to the same path) reloads that file (a new effects file
+restarts the hidden states); coefficients set in the same atomic
 request apply on top of the new file; afterwards the coefficient parameters of that model are
 re-declared with the file's values. A wheel's ``<wheelkey>.<NAME>`` parameters exist only while
 it has its own file (set ``<wheelkey>.tir_file`` first, then its coefficients; setting it back
@@ -72,6 +78,7 @@ from sensor_msgs.msg import FluidPressure, Temperature
 from std_srvs.srv import Trigger
 
 from tire_model_ros.model import TireModel
+from tire_model_ros.model.states import Effects, EffectState
 from tire_model_ros.node import cdr_fast, realtime
 from tire_model_ros.node import params as pn
 from tire_model_ros.node.wheel import Nominal, Throttle, WheelState
@@ -110,6 +117,12 @@ class Slot:
         if not all(math.isfinite(x) for x in out):
             raise ValueError(f"{path}: the model gives non-finite forces at its nominal point")
         return cls(value, path, model, nominal)
+
+
+def _load_effects(value: object) -> Effects | None:
+    if not isinstance(value, str):
+        raise ValueError(f"effects_file: expected a string path, got {value!r}")
+    return Effects.read(value) if value else None
 
 
 def _fail(reason: str) -> SetParametersResult:
@@ -161,6 +174,11 @@ class TireModelNode(Node):
             "tir_file",
             pn.default_tir_path(),
             _descriptor("shared .tir file (absolute, relative to cwd, or to config/)"),
+        )
+        self.declare_parameter(
+            "effects_file",
+            "",
+            _descriptor("effects file of `tire-model diagnose` (hidden states; '' = none)"),
         )
         self.declare_parameter(
             "limits", True, _descriptor("saturate inputs to the file's limits, low-speed model")
@@ -261,6 +279,13 @@ class TireModelNode(Node):
                 changed = self._declare_coefficients(w.key, own.model, overrides=True)
                 self.slots[w.key] = self._with_updates(own, changed)
                 w.slot = w.key
+        self._set_effects(_load_effects(self.get_parameter("effects_file").value))
+
+    def _set_effects(self, effects: Effects | None) -> None:
+        """Fresh hidden states for every wheel the effects file serves (none: no effects)."""
+        for w in self.wheels:
+            fx = effects.for_wheel(w.prefix) if effects is not None else None
+            w.effects = EffectState(fx) if fx is not None else None
 
     @staticmethod
     def _with_updates(slot: Slot, updates: dict[str, float]) -> Slot:
@@ -286,7 +311,8 @@ class TireModelNode(Node):
         try:
             new_slots, redeclare = self._plan(params)
             settings = self._plan_settings(params)
-        except (ValueError, OSError) as exc:  # TirError is a ValueError
+            effects = [_load_effects(p.value) for p in params if p.name == "effects_file"]
+        except (ValueError, OSError) as exc:  # TirError, EffectsError are ValueErrors
             return self._reject(str(exc))
         except Exception as exc:  # a bug in a model build must not stop the node
             return self._reject(f"{type(exc).__name__}: {exc}")
@@ -302,6 +328,9 @@ class TireModelNode(Node):
             w.slot = w.key if w.key in slots else ""
         for name, value in settings.items():
             setattr(self, name, value)
+        if effects:
+            self._set_effects(effects[-1])
+            self.reloads += 1
         self._redeclare |= redeclare
         if redeclare:
             self.reloads += 1
@@ -387,6 +416,8 @@ class TireModelNode(Node):
 
     def _on_reload(self, request: Trigger.Request, response: Trigger.Response):
         names = ["tir_file"] + [f"{k}.tir_file" for k in self.slots if k]
+        if self.get_parameter("effects_file").value:
+            names.append("effects_file")
         params = [self.get_parameter(n) for n in names]
         result = self.set_parameters_atomically(params)
         response.success = bool(result.successful)
@@ -420,12 +451,14 @@ class TireModelNode(Node):
             if parsed is None:  # not CDR_LE: the general path
                 msg = deserialize_message(data, Vector3Stamped)
                 end, x, y, z = -1, msg.vector.x, msg.vector.y, msg.vector.z
+                stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
             else:
                 end, x, y, z = parsed
+                stamp = cdr_fast.read_stamp(data)
             slot = self.slots[w.slot]
             res, events = w.compute(
                 x, y, z, now, slot.model, slot.nominal, self.timeouts, self.limits,
-                self.skip_without_load,
+                self.skip_without_load, stamp,
             )  # fmt: skip
             if events:
                 self._log_events(w, events, now)

@@ -15,6 +15,10 @@ Decisions (one place, documented in the node's docstring too):
 - Non-finite pressure/temperature/velocity, negative gauge pressure, temperature below
   absolute zero: rejected, previous value held.
 - Model output not finite, or the model raising: nothing published, counted.
+- With an effects file (``effects``: the diagnosis' hidden states, :mod:`..model.states`), a
+  temperature or pressure that is not fresh takes the hidden tread or gas node's value instead
+  of the nominal one; the nodes step on the slip messages' header stamps and are driven by the
+  frictional power of the wheel's own previous output.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+
+from tire_model_ros.model.states import EffectState
 
 ABSOLUTE_ZERO_DEGC = -273.15
 
@@ -108,6 +114,7 @@ class WheelState:
         self.output_nonfinite = 0
         self.model_errors = 0
         self.last_error = ""
+        self.effects: EffectState | None = None  # hidden states of an effects file
 
     # -- inputs: each returns None when accepted, else the reason it was rejected ----------
     def set_load(self, Fz: float, now: float) -> str | None:
@@ -144,8 +151,10 @@ class WheelState:
         timeouts: Mapping[str, float],
         limits: bool,
         skip_without_load: bool = False,
+        stamp: float = 0.0,
     ) -> tuple[tuple[float, float, float, float, float, float] | None, list[str]]:
-        """Forces for one slip sample and the events worth a (throttled) log line.
+        """Forces for one slip sample (``stamp``: its header time [s]) and the events worth a
+        (throttled) log line.
 
         Returns (None, events) when nothing must be published; the reason is counted.
         """
@@ -170,12 +179,18 @@ class WheelState:
         for name, s, value in (("pressure", sp, p), ("temperature", sT, T), ("velocity", sV, Vx)):
             if s == "stale":
                 events.append(f"fallback.{name}: {name} stale, using nominal {value}")
+        fx, k, a, s = self.effects, kappa, alpha, 1.0
         try:
-            out = model.evaluate_one(Fz, kappa, alpha, gamma, Vx, p, T, limits=limits)
+            if fx is not None:
+                k, a, T, p, s = fx.inputs(stamp, kappa, alpha, Vx, T if sT == "ok" else None,
+                                          p if sp == "ok" else None, nominal.p, nominal.T)
+            out = model.evaluate_one(Fz, k, a, gamma, Vx, p, T, limits=limits)
         except Exception as exc:  # whatever the model raises, the node keeps running
             self.model_errors += 1
             self.last_error = f"{type(exc).__name__}: {exc}"
             return None, [f"model_error: {self.last_error}"]
+        if fx is not None:
+            out = fx.outputs(out, s, Fz, kappa, alpha, Vx, nominal.Fz)
         if not all(math.isfinite(x) for x in out):
             self.output_nonfinite += 1
             return None, [f"output_nonfinite: inputs Fz={Fz} kappa={kappa} alpha={alpha}"]

@@ -1,0 +1,120 @@
+"""The hidden states of an improved model run forward (``model.states``): the node's form of
+the diagnosis' effects. Real .tir file; no ROS."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tire_model_ros.diagnosis.thermal import gas_pressure_Pa, thermal_state_K
+from tire_model_ros.model import TireModel
+from tire_model_ros.model.states import Effects, EffectsError, EffectState, Node, WheelEffects
+
+TIR = Path(__file__).resolve().parents[1] / "config" / "default.tir"
+FULL = WheelEffects(
+    T_amb_C=20.0,
+    thermal=Node(3.0, 2e-3),
+    bulk=Node(120.0, 1e-5),
+    bulk_mu_loss=0.4,
+    gas=Node(60.0, 1e-3),
+    offsets={"Fy": (12.0, 150.0), "Mz": (-1.5, 0.0)},
+    speed_table=((-2.0, 0.0, 1.0), (0.8, 1.0, 0.9)),
+)
+
+
+def test_nodes_step_as_the_diagnosis_integrates_them():
+    """Driven by the power of its outputs, each node follows the diagnosis' exact-step
+    integration (thermal_state_K) sample for sample, on uneven stamps with a pause."""
+    rng = np.random.default_rng(1)
+    t = np.cumsum(rng.uniform(0.005, 0.03, 400))
+    t[200:] += 5.0  # a pause
+    P = rng.uniform(0.0, 4000.0, 400)
+    fx = WheelEffects(thermal=Node(2.5, 3e-3), bulk=Node(90.0, 2e-5), gas=Node(40.0, 5e-4))
+    st = EffectState(fx)
+    got = {k: [] for k in ("thermal", "bulk", "gas")}
+    for ti, Pi in zip(t, P, strict=True):
+        st.inputs(float(ti), 0.1, 0.0, 10.0, 30.0, 2.5e5, 2.6e5, 25.0)
+        for k in got:
+            got[k].append(st.y[k])
+        st.outputs((Pi, 0.0, 5000.0, 0.0, 0.0, 0.0), 1.0, 5000.0, 0.1, 0.0, 10.0, 5000.0)
+    for k in got:  # |Fx V kappa| = P with V kappa = 1
+        node = getattr(fx, k)
+        want = thermal_state_K(P, t, node.tau_s, node.gain_per_W)
+        np.testing.assert_allclose(got[k], want, rtol=1e-12, atol=1e-12)
+
+
+def test_inputs_and_outputs_follow_the_effects():
+    """Measured channels pass; missing ones take the hidden nodes; friction scales by the
+    similarity method; offsets add, their load part in proportion to Fz / FNOMIN."""
+    model = TireModel.from_file(TIR)
+    st = EffectState(FULL)
+    st.y.update(thermal=15.0, bulk=0.25, gas=8.0)
+    st.t_last = 1.0
+    kappa, alpha, Vx, Fz = 0.04, math.radians(3.0), 12.0, 5000.0
+    st.P_last = 0.0  # no heating over the next step: the states only decay
+    k, a, T, p, s = st.inputs(1.0, kappa, alpha, Vx, None, None, 2.6e5, 25.0)
+    assert T == 20.0 + 15.0
+    assert p == pytest.approx(float(gas_pressure_Pa(2.6e5, np.array(8.0), 20.0)))
+    Vs = Vx * math.hypot(kappa, math.tan(alpha))
+    s_want = (1 - 0.4 * 0.25) * float(np.interp(math.log(Vs), [-2.0, 0.0, 1.0], [0.8, 1.0, 0.9]))
+    assert s == pytest.approx(s_want, rel=1e-12)
+    assert (k, math.tan(a)) == pytest.approx((kappa / s, math.tan(alpha) / s), rel=1e-12)
+    assert st.inputs(1.0, kappa, alpha, Vx, 42.0, 2.2e5, 2.6e5, 25.0)[2:4] == (42.0, 2.2e5)
+    raw = model.evaluate_one(Fz, k, a, 0.0, Vx, p, T)
+    out = st.outputs(raw, s, Fz, kappa, alpha, Vx, 6000.0)
+    assert out[0] == pytest.approx(raw[0] * s)
+    assert out[1] == pytest.approx(raw[1] * s + 12.0 + 150.0 * Fz / 6000.0)
+    assert out[5] == pytest.approx(raw[5] * s - 1.5)
+    assert out[2:5] == raw[2:5]
+    assert st.P_last == pytest.approx(abs(out[0] * Vx * kappa) + abs(out[1] * Vx * math.tan(alpha)))
+    st.outputs((math.nan,) * 6, 1.0, Fz, kappa, alpha, Vx, 6000.0)
+    assert math.isfinite(st.P_last)  # a bad sample does not poison the states
+
+
+def test_effects_file_round_trip(tmp_path):
+    fx = Effects({"/rig/wheel": FULL}, "improved.tir", ("drift: friction step at a fitted time",))
+    path = tmp_path / "improved.effects.json"
+    path.write_text(fx.to_json())
+    back = Effects.read(path)
+    assert back == fx
+    assert back.for_wheel("/car/fl") == FULL  # a one-wheel (rig) file serves every wheel
+    two = Effects({"/a": FULL, "/b": WheelEffects()})
+    assert two.for_wheel("/c") is None
+
+
+@pytest.mark.parametrize(
+    ("mangle", "words"),
+    [
+        (lambda d: d.update(format="x"), ["format"]),
+        (lambda d: d.update(version=2), ["version"]),
+        (lambda d: d.update(wheels={}), ["wheels"]),
+        (lambda d: d["wheels"]["/w"]["thermal"].update(tau_s=-1.0), ["wheels./w.thermal.tau_s"]),
+        (lambda d: d["wheels"]["/w"]["bulk"].pop("mu_loss"), ["wheels./w.bulk.mu_loss"]),
+        (lambda d: d["wheels"]["/w"]["offsets"].update(Fq={"N": 1}), ["offsets.Fq"]),
+        (lambda d: d["wheels"]["/w"]["speed_table"].update(ln_Vs=[1, 0, 2]), ["speed_table"]),
+        (lambda d: d["wheels"]["/w"]["speed_table"].update(mu=[1, -1, 1]), ["speed_table"]),
+        (lambda d: d["wheels"]["/w"].update(T_amb_C="hot"), ["T_amb_C"]),
+    ],
+)
+def test_malformed_effects_file_names_file_and_key(tmp_path, mangle, words):
+    doc = json.loads(Effects({"/w": FULL}).to_json())
+    mangle(doc)
+    path = tmp_path / "bad.effects.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(EffectsError) as err:
+        Effects.read(path)
+    assert str(path) in str(err.value)
+    for w in words:
+        assert w in str(err.value)
+
+
+def test_unreadable_effects_file(tmp_path):
+    for path, text in ((tmp_path / "garbage.json", "{not json"), (tmp_path / "none.json", None)):
+        if text is not None:
+            path.write_text(text)
+        with pytest.raises(EffectsError, match=path.name):
+            Effects.read(path)

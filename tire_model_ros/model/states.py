@@ -1,0 +1,251 @@
+"""Hidden states of an improved model, run forward one sample at a time (no ROS).
+
+``tire-model diagnose`` fits effects that a .tir file cannot hold: a hidden tread-temperature
+node, a slow carcass node lowering grip, a hidden gas node, force offsets, friction against
+sliding speed. It writes them beside the improved .tir as an *effects file* (JSON, one entry per
+wheel); the node runs them per wheel with :class:`EffectState`, so a simulation with the
+improved model heats the tyre as the diagnosis found it did.
+
+The forms are the diagnosis' (:mod:`tire_model_ros.diagnosis.candidates`): each node is
+``y' = (k P_fric - y) / tau``, stepped exactly for the power held over the step; friction
+scales by the similarity method (Pacejka 2012 §4.3.2). One difference, by necessity: the
+diagnosis drives the nodes with the frictional power of the *measured* forces, a forward model
+with its own previous output forces.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+FORMAT = "tire_model_ros.effects"
+VERSION = 1
+P_ATM_PA = 101325.0
+T_ABS0_C = 273.15
+MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
+
+
+@dataclass(frozen=True)
+class Node:
+    """One first-order node: time constant [s] and steady rise per W of frictional power."""
+
+    tau_s: float
+    gain_per_W: float
+
+
+@dataclass(frozen=True)
+class WheelEffects:
+    """The effects of one wheel (None: not part of the model)."""
+
+    T_amb_C: float = 25.0
+    thermal: Node | None = None  # tread temperature [K above T_amb_C] -> the T input
+    bulk: Node | None = None  # carcass state [-]; grip scales by 1 - bulk_mu_loss * state
+    bulk_mu_loss: float = 0.0
+    gas: Node | None = None  # gas temperature [K above T_amb_C] -> gas law -> the p input
+    offsets: dict[str, tuple[float, float]] = field(default_factory=dict)  # ch: (N, N at FNOMIN)
+    speed_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (ln Vs, mu)
+
+    def to_dict(self) -> dict:
+        d: dict = {"T_amb_C": self.T_amb_C}
+        for name in ("thermal", "bulk", "gas"):
+            node = getattr(self, name)
+            if node is not None:
+                d[name] = {"tau_s": node.tau_s, "gain_per_W": node.gain_per_W}
+        if self.bulk is not None:
+            d["bulk"]["mu_loss"] = self.bulk_mu_loss
+        if self.offsets:
+            d["offsets"] = {ch: {"N": a, "N_at_FNOMIN": b} for ch, (a, b) in self.offsets.items()}
+        if self.speed_table is not None:
+            d["speed_table"] = {"ln_Vs": list(self.speed_table[0]),
+                                "mu": list(self.speed_table[1])}
+        return d
+
+
+class EffectsError(ValueError):
+    """A malformed effects file; the message names the file and the key."""
+
+
+@dataclass(frozen=True)
+class Effects:
+    """The contents of an effects file: per wheel prefix, its effects; what was not carried."""
+
+    wheels: dict[str, WheelEffects]
+    tir: str = ""
+    not_carried: tuple[str, ...] = ()
+
+    def for_wheel(self, prefix: str) -> WheelEffects | None:
+        """The effects of ``prefix``; a file of a single wheel (a rig) serves every wheel."""
+        if prefix in self.wheels:
+            return self.wheels[prefix]
+        if len(self.wheels) == 1:
+            return next(iter(self.wheels.values()))
+        return None
+
+    def to_json(self) -> str:
+        doc = {"format": FORMAT, "version": VERSION, "tir": self.tir,
+               "wheels": {p: w.to_dict() for p, w in self.wheels.items()},
+               "not_carried": list(self.not_carried)}
+        return json.dumps(doc, indent=2, allow_nan=False) + "\n"
+
+    @classmethod
+    def read(cls, path: str | Path) -> Effects:
+        path = Path(path)
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise EffectsError(f"{path}: not a readable effects file ({exc})") from None
+        return cls.from_dict(doc, str(path))
+
+    @classmethod
+    def from_dict(cls, doc: object, where: str = "effects") -> Effects:
+        if not isinstance(doc, Mapping) or doc.get("format") != FORMAT:
+            raise EffectsError(f"{where}: key 'format' must be {FORMAT!r}")
+        if doc.get("version") != VERSION:
+            raise EffectsError(f"{where}: key 'version' must be {VERSION}")
+        wheels = doc.get("wheels")
+        if not isinstance(wheels, Mapping) or not wheels:
+            raise EffectsError(f"{where}: key 'wheels' must map wheel prefixes to effects")
+        out = {str(p): _wheel(w, f"{where}: wheels.{p}") for p, w in wheels.items()}
+        return cls(out, str(doc.get("tir", "")), tuple(map(str, doc.get("not_carried", ()))))
+
+
+def _number(d: Mapping, key: str, where: str, lo: float = -math.inf) -> float:
+    v = d.get(key)
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < lo:
+        raise EffectsError(f"{where}.{key}: expected a finite number >= {lo:g}, got {v!r}")
+    return float(v)
+
+
+def _node(d: object, where: str) -> Node:
+    if not isinstance(d, Mapping):
+        raise EffectsError(f"{where}: expected an object with tau_s and gain_per_W")
+    return Node(_number(d, "tau_s", where, 0.0), _number(d, "gain_per_W", where))
+
+
+def _wheel(d: object, where: str) -> WheelEffects:
+    if not isinstance(d, Mapping):
+        raise EffectsError(f"{where}: expected an object")
+    nodes = {k: _node(d[k], f"{where}.{k}") for k in ("thermal", "bulk", "gas") if k in d}
+    loss = _number(d["bulk"], "mu_loss", f"{where}.bulk") if "bulk" in d else 0.0
+    offsets = {}
+    for ch, o in (d.get("offsets") or {}).items():
+        if ch not in ("Fx", "Fy", "Mz") or not isinstance(o, Mapping):
+            raise EffectsError(f"{where}.offsets.{ch}: expected Fx, Fy or Mz with N, N_at_FNOMIN")
+        w = f"{where}.offsets.{ch}"
+        offsets[ch] = (_number(o, "N", w), _number(o, "N_at_FNOMIN", w))
+    table = None
+    if "speed_table" in d:
+        t, w = d["speed_table"], f"{where}.speed_table"
+        try:
+            lnV, mu = tuple(map(float, t["ln_Vs"])), tuple(map(float, t["mu"]))
+        except (TypeError, KeyError, ValueError):
+            raise EffectsError(f"{w}: expected lists ln_Vs and mu") from None
+        if len(lnV) < 2 or len(lnV) != len(mu) or any(b <= a for a, b in itertools.pairwise(lnV)):
+            raise EffectsError(f"{w}: ln_Vs must rise, with one mu per knot (2 or more)")
+        if not all(math.isfinite(v) and v > 0 for v in mu) or not all(map(math.isfinite, lnV)):
+            raise EffectsError(f"{w}: values must be finite, mu > 0")
+        table = (lnV, mu)
+    T_amb = _number(d, "T_amb_C", where, -T_ABS0_C) if "T_amb_C" in d else 25.0
+    return WheelEffects(T_amb, nodes.get("thermal"), nodes.get("bulk"), loss, nodes.get("gas"),
+                        offsets, table)
+
+
+def _interp(x: float, xs: tuple[float, ...], ys: tuple[float, ...]) -> float:
+    """Piecewise-linear interpolation, held constant outside the knots (as numpy.interp)."""
+    if x <= xs[0]:
+        return ys[0]
+    for i in range(1, len(xs)):
+        if x <= xs[i]:
+            f = (x - xs[i - 1]) / (xs[i] - xs[i - 1])
+            return ys[i - 1] + f * (ys[i] - ys[i - 1])
+    return ys[-1]
+
+
+class EffectState:
+    """The running states of one wheel's effects.
+
+    Per sample: :meth:`inputs` steps the nodes to time ``t_s`` and gives the model's inputs
+    (temperature, pressure, the slips by the similarity method) and the friction scale;
+    after the model, :meth:`outputs` scales and offsets its forces and takes their frictional
+    power as the drive of the next step.
+    """
+
+    def __init__(self, effects: WheelEffects) -> None:
+        self.fx = effects
+        self.reset()
+
+    def reset(self) -> None:
+        self.t_last: float | None = None
+        self.P_last = 0.0  # frictional power held over the step [W]
+        self.y = {"thermal": 0.0, "bulk": 0.0, "gas": 0.0}
+
+    def _step(self, t_s: float) -> None:
+        dt = 0.0 if self.t_last is None else max(t_s - self.t_last, 0.0)
+        self.t_last = t_s
+        for name in self.y:
+            node: Node | None = getattr(self.fx, name)
+            if node is None:
+                continue
+            u = node.gain_per_W * self.P_last
+            if node.tau_s <= 0.0:
+                self.y[name] = u
+                continue
+            a = math.exp(-dt / node.tau_s)
+            self.y[name] = a * self.y[name] + (1.0 - a) * u
+
+    @property
+    def temperature_C(self) -> float:
+        return self.fx.T_amb_C + self.y["thermal"]
+
+    def inputs(self, t_s: float, kappa: float, alpha: float, Vx: float, T_C: float | None,
+               p_Pa: float | None, p_nom: float, T_nom: float
+               ) -> tuple[float, float, float, float, float]:
+        """(kappa, alpha, T, p, s) for the model at ``t_s`` [s]; s is the friction scale.
+
+        A temperature ``T_C`` [degC] or gauge pressure ``p_Pa`` that is None (not measured)
+        takes the hidden tread node, or the gas law on ``p_nom`` with the hidden gas node; the
+        nominal value when the effects have no such node.
+        """
+        self._step(t_s)
+        fx = self.fx
+        T = T_C
+        if T is None:
+            T = self.temperature_C if fx.thermal is not None else T_nom
+        p = p_Pa
+        if p is None:
+            p = p_nom
+            if fx.gas is not None:
+                T0 = fx.T_amb_C + T_ABS0_C
+                p = (p_nom + P_ATM_PA) * (T0 + self.y["gas"]) / T0 - P_ATM_PA
+        s = 1.0
+        if fx.bulk is not None:
+            s *= 1.0 - fx.bulk_mu_loss * self.y["bulk"]
+        if fx.speed_table is not None:
+            Vs = abs(Vx) * math.hypot(kappa, math.tan(alpha))
+            s *= _interp(math.log(max(Vs, 1e-4)), *fx.speed_table)
+        s = max(s, MIN_MU_SCALE)
+        if s != 1.0:
+            kappa, alpha = kappa / s, math.atan(math.tan(alpha) / s)
+        return kappa, alpha, T, p, s
+
+    def _offset(self, ch: str, load: float) -> float:
+        a, b = self.fx.offsets.get(ch, (0.0, 0.0))
+        return a + b * load
+
+    def outputs(self, out: tuple[float, ...], s: float, Fz: float, kappa: float, alpha: float,
+                Vx: float, FNOMIN: float) -> tuple[float, ...]:
+        """(Fx, Fy, Fz, Mx, My, Mz) scaled by s (Fx, Fy, Mz), with the offsets (their load
+        part in proportion to Fz / FNOMIN); its frictional power |Fx V kappa| +
+        |Fy V tan(alpha)| (the slips before the similarity method) drives the next step."""
+        Fx, Fy, Fz_o, Mx, My, Mz = out
+        Fx, Fy, Mz = Fx * s, Fy * s, Mz * s
+        load = Fz / FNOMIN if FNOMIN > 0 else 0.0
+        Fx, Fy, Mz = (v + self._offset(ch, load) for ch, v in (("Fx", Fx), ("Fy", Fy), ("Mz", Mz)))
+        P = abs(Fx * Vx * kappa) + abs(Fy * Vx * math.tan(alpha))
+        if math.isfinite(P):  # a bad sample must not poison the states
+            self.P_last = P
+        return Fx, Fy, Fz_o, Mx, My, Mz
