@@ -66,8 +66,9 @@ def test_broadcasting(model) -> None:
 
 
 def test_input_layouts_give_the_same_result_and_are_left_as_they_were(model) -> None:
-    # Full-shape C-contiguous float64 inputs go to the kernels as they are; strided, read-only
-    # and integer ones are copied first: every layout gives the same values, no input changes.
+    # Full-shape C-contiguous float64 inputs go to the kernels as they are; strided, read-only,
+    # unaligned and integer ones are copied first: every layout gives the same values, and no
+    # input changes.
     Fz, kappa, alpha, gamma, Vx, p, T = _random_inputs(2000, seed=3)
     ref = model.evaluate(Fz, kappa, alpha, gamma, Vx, p, T)
     kept = [a.copy() for a in (Fz, kappa, alpha, gamma, Vx, p, T)]
@@ -75,7 +76,8 @@ def test_input_layouts_give_the_same_result_and_are_left_as_they_were(model) -> 
     readonly = kappa.copy()
     readonly.setflags(write=False)
     two_d = alpha.reshape(40, 50)
-    out = model.evaluate(strided, readonly, two_d.reshape(-1), gamma, Vx, p, T)
+    unaligned = np.frombuffer(bytearray(b"\0" + gamma.tobytes()), dtype=np.float64, offset=1)
+    out = model.evaluate(strided, readonly, two_d.reshape(-1), unaligned, Vx, p, T)
     for name in ("Fx", "Fy", "Mz", "Mx", "My", "Re", "Cz"):
         np.testing.assert_array_equal(getattr(out, name), getattr(ref, name), err_msg=name)
     for a, b in zip((Fz, kappa, alpha, gamma, Vx, p, T), kept, strict=True):

@@ -142,12 +142,13 @@ class TireModel:
         arrays = [np.asarray(x, dtype=np.float64) for x in (Fz, kappa, alpha, gamma, Vx, p, T,
                                                              phit, omega)]  # fmt: skip
         shape = np.broadcast_shapes(*(a.shape for a in arrays))
-        # one array type for the kernels (C-contiguous, writable): one compiled specialization.
-        # An input of that type and of the full shape is passed as it is (the kernels only read
-        # it); any other is broadcast into a new array.
+        # one array type for the kernels (C-contiguous, writable, aligned): one compiled
+        # specialization. An input of that type and of the full shape is passed as it is (the
+        # kernels only read it); any other is broadcast into a new array.
         flat = []
         for a in arrays:
-            if a.shape != shape or not (a.flags.c_contiguous and a.flags.writeable):
+            f = a.flags
+            if a.shape != shape or not (f.c_contiguous and f.writeable and f.aligned):
                 b = np.empty(shape)
                 np.copyto(b, a)
                 a = b
