@@ -4,9 +4,10 @@
   target >= 5 million evaluations per second;
 - single sample: ``TireModel.evaluate_one`` as the node calls it, median, target <= 20 us.
 
-Run: ``NUMBA_NUM_THREADS=1 .venv/bin/python bench/bench_model.py [--tir FILE] [--runs N]``.
-Both wall-clock and process CPU time are printed: on a shared machine the CPU time is the
-fairer figure for one core.
+Run: ``NUMBA_NUM_THREADS=1 .venv/bin/python bench/bench_model.py [--tir FILE] [--runs N]
+[--stages]``. Both wall-clock and process CPU time are printed: on a shared machine the CPU time
+is the fairer figure for one core. ``--stages`` also times each stage loop of the batch kernel
+on its own (CPU ns per sample, over 100 blocks of the same inputs): where the time goes.
 """
 
 from __future__ import annotations
@@ -40,11 +41,51 @@ def _median_time(fn, runs: int) -> tuple[float, float]:
     return float(np.median(wall)), float(np.median(cpu))
 
 
+def _stage_times(model, inputs, runs: int) -> None:
+    """Print each stage loop's CPU time per sample (limits on), called block by block."""
+    from tire_model_ros.model import kernel as k
+
+    P, B = model.coefficient_vector, k.BLOCK
+    nb = 100
+    Fz, kappa, alpha, gamma, Vx, p, T = (a[: nb * B].copy() for a in inputs)
+    phit = np.zeros(nb * B)
+    mf52 = k.is_mf52(P)
+    stages = {
+        "conditions": lambda i0, s: k._conditions_stage(
+            P, Fz, kappa, alpha, gamma, Vx, p, T, phit, True, i0, B
+        ),
+        "longitudinal": lambda i0, s: k._longitudinal_stage(P, Vx, True, i0, B, s),
+        "lateral": lambda i0, s: k._lateral_stage(P, True, mf52, B, s),
+        "lateral_zero_camber": lambda i0, s: k._lateral_zero_camber_stage(P, True, mf52, B, s),
+        "combined": lambda i0, s: k._combined_stage(P, True, B, s),
+        "aligning": lambda i0, s: k._aligning_stage(P, Vx, True, mf52, i0, B, s),
+        "moments": lambda i0, s: k._moments_stage(P, kappa, Vx, mf52, i0, B, s),
+    }
+    rows = (k.COND_ROWS, k.LONG_ROWS, k.LAT_ROWS, k.LAT_G0_ROWS, k.COMB_ROWS, k.MZ_ROWS,
+            k.MOM_ROWS)  # fmt: skip
+    scratch = []  # each block's scratch after all stages: the inputs every stage reads
+    for b in range(nb):
+        s = np.empty((k.N_SCRATCH, B))
+        for f, r in zip(stages.values(), rows, strict=True):
+            k._keep(s, r, f(b * B, s), B)
+        scratch.append(s)
+    total = 0.0
+    for name, f in stages.items():
+        _, cpu = _median_time(lambda f=f: [f(b * B, scratch[b]) for b in range(nb)], runs)
+        total += cpu / (nb * B) * 1e9
+        print(f"  stage {name}: {cpu / (nb * B) * 1e9:.1f} ns/sample CPU")
+    print(
+        f"  stages together: {total:.1f} ns/sample ({1e3 / total:.2f} M/s; with a Python call per "
+        f"block, without the copies between blocks)"
+    )
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tir", default=str(DEFAULT_TIR))
     ap.add_argument("--runs", type=int, default=7)
     ap.add_argument("-n", type=int, default=1_000_000)
+    ap.add_argument("--stages", action="store_true", help="also time each stage loop")
     args = ap.parse_args()
 
     t0 = time.perf_counter()
@@ -78,6 +119,9 @@ def main() -> int:
             f"batch {label}: {n / wall / 1e6:.2f} M/s wall, {n / cpu / 1e6:.2f} M/s CPU "
             f"(target >= 5 M/s)"
         )
+
+    if args.stages:
+        _stage_times(model, (Fz, kappa, alpha, gamma, Vx, p, T), args.runs)
 
     m = 20000
     idx = rng.integers(0, n, m)

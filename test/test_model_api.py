@@ -65,6 +65,27 @@ def test_broadcasting(model) -> None:
     assert forces_only.Re is None
 
 
+def test_input_layouts_give_the_same_result_and_are_left_as_they_were(model) -> None:
+    # Full-shape C-contiguous float64 inputs go to the kernels as they are; strided, read-only,
+    # unaligned and integer ones are copied first: every layout gives the same values, and no
+    # input changes.
+    Fz, kappa, alpha, gamma, Vx, p, T = _random_inputs(2000, seed=3)
+    ref = model.evaluate(Fz, kappa, alpha, gamma, Vx, p, T)
+    kept = [a.copy() for a in (Fz, kappa, alpha, gamma, Vx, p, T)]
+    strided = np.repeat(Fz, 2)[::2]
+    readonly = kappa.copy()
+    readonly.setflags(write=False)
+    two_d = alpha.reshape(40, 50)
+    unaligned = np.frombuffer(bytearray(b"\0" + gamma.tobytes()), dtype=np.float64, offset=1)
+    out = model.evaluate(strided, readonly, two_d.reshape(-1), unaligned, Vx, p, T)
+    for name in ("Fx", "Fy", "Mz", "Mx", "My", "Re", "Cz"):
+        np.testing.assert_array_equal(getattr(out, name), getattr(ref, name), err_msg=name)
+    for a, b in zip((Fz, kappa, alpha, gamma, Vx, p, T), kept, strict=True):
+        np.testing.assert_array_equal(a, b)
+    whole = model.evaluate(np.full(3, 4000), 0, np.zeros(3))  # integers, scalars
+    np.testing.assert_array_equal(whole.Fy, model.evaluate(np.full(3, 4000.0), 0.0, 0.0).Fy)
+
+
 @pytest.mark.parametrize("limits", [True, False])
 def test_evaluate_one_equals_evaluate(model, limits) -> None:
     Fz, kappa, alpha, gamma, Vx, p, T = _random_inputs(300)

@@ -84,3 +84,15 @@ def test_pow_matches_libm_and_its_special_cases() -> None:
         want = np.power(x, y)
     # exp(y log x): the rounding of y log x (|y log x| < 4 here) costs up to ~20 ulp
     assert _ulp_error(got, want).max() <= 32
+
+
+@njit
+def _fma(a, b, c):
+    return vm.fma(a, b, c)
+
+
+def test_fma_rounds_once() -> None:
+    # (1 + 2^-30)^2 - (1 + 2^-29) = 2^-60 exactly; a multiply then an add rounds it to 0
+    a = 1.0 + 2.0**-30
+    assert _fma(a, a, -(1.0 + 2.0**-29)) == 2.0**-60
+    assert a * a - (1.0 + 2.0**-29) == 0.0

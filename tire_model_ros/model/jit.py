@@ -5,8 +5,9 @@
 vectorises them; ``standalone`` is compiled on its own: the sample loops, and the vertical
 equations that the (unvectorised) loop of the full outputs calls.
 ``error_model="numpy"``: a division by zero gives inf/NaN like numpy instead of raising, so bad
-inputs cannot crash an evaluation. No fastmath: the oracle comparison needs IEEE arithmetic
-(:mod:`.vmath` alone allows FMA contraction).
+inputs cannot crash an evaluation. No fastmath: the oracle comparison needs IEEE arithmetic, and
+the results must not depend on the machine (:mod:`.vmath` fuses its multiply-adds explicitly,
+with ``llvm.fma``: a fastmath flag on an inlined function is lost, the caller's flags apply).
 ``cache=True``: compiled code is stored in ``__pycache__`` beside the sources and reused by
 later processes.
 
@@ -78,5 +79,5 @@ if config.CPU_FEATURES is None:
 
 kernel = njit(cache=True, error_model="numpy", inline="always")
 standalone = njit(cache=True, error_model="numpy")
-vkernel = njit(cache=True, error_model="numpy", inline="always", fastmath={"contract"})
-"""The decorator of :mod:`.vmath`: ``kernel`` with FMA contraction allowed."""
+vkernel = kernel
+"""The decorator of :mod:`.vmath` (``kernel``)."""

@@ -76,28 +76,41 @@ MZ_ROWS = (MZ, T_TRAIL, MZR)
 MOM_ROWS = (MX, MY)
 
 
+@kernel
+def _conditions_sample(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, i, o, j):
+    """Column j of the conditions block: sample i (see :func:`_conditions_stage`)."""
+    Fz_, kappa_, alpha_, gamma_, _, p_, uFz, _, Fz_low, red = operating_point(
+        P, Fz[i], kappa[i], alpha[i], gamma[i], Vx[i], p[i], phit[i], limits
+    )
+    Fz_mz = Fz_low if limits else Fz_
+    o[0, j] = Fz_
+    o[1, j] = kappa_
+    o[2, j] = alpha_
+    o[3, j] = gamma_
+    o[4, j] = p_
+    o[5, j] = 0.0 if Fz_ <= 0.0 else Fz_mz
+    o[6, j] = red
+    o[7, j] = load_increment(P, Fz_)
+    o[8, j] = pressure_increment(P, p_)
+    o[9, j] = temperature_increment(P, T[i])
+    o[10, j] = cos_alpha_prime(alpha_, Vx[i])
+    o[11, j] = uFz
+
+
 @standalone
 def _conditions_stage(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, i0, n):
-    """Operating point and increments of samples i0..i0+n-1 (column j = i - i0), COND_ROWS."""
+    """Operating point and increments of samples i0..i0+n-1 (column j = i - i0), COND_ROWS.
+
+    One loop per value of ``limits``: with a constant there, the branches of the saturation
+    and low-speed model fold away and LLVM vectorises the loop.
+    """
     o = np.empty((len(COND_ROWS), BLOCK))
-    for j in range(n):
-        i = i0 + j
-        Fz_, kappa_, alpha_, gamma_, _, p_, uFz, _, Fz_low, red = operating_point(
-            P, Fz[i], kappa[i], alpha[i], gamma[i], Vx[i], p[i], phit[i], limits
-        )
-        Fz_mz = Fz_low if limits else Fz_
-        o[0, j] = Fz_
-        o[1, j] = kappa_
-        o[2, j] = alpha_
-        o[3, j] = gamma_
-        o[4, j] = p_
-        o[5, j] = 0.0 if Fz_ <= 0.0 else Fz_mz
-        o[6, j] = red
-        o[7, j] = load_increment(P, Fz_)
-        o[8, j] = pressure_increment(P, p_)
-        o[9, j] = temperature_increment(P, T[i])
-        o[10, j] = cos_alpha_prime(alpha_, Vx[i])
-        o[11, j] = uFz
+    if limits:
+        for j in range(n):
+            _conditions_sample(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, True, i0 + j, o, j)
+    else:
+        for j in range(n):
+            _conditions_sample(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, False, i0 + j, o, j)
     return o
 
 

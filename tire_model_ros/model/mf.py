@@ -139,14 +139,20 @@ class TireModel:
         p = self._p_nom if p is None else p
         T = self._params["NOMTEMP"] if T is None else T
         omega = math.nan if omega is None else omega
-        arrays = np.broadcast_arrays(
-            *(np.asarray(x, dtype=np.float64) for x in (Fz, kappa, alpha, gamma, Vx, p, T,
-                                                          phit, omega))
-        )  # fmt: skip
-        shape = arrays[0].shape
-        # one array type for the kernels (C-contiguous, writable): one compiled specialization.
-        # A copy: broadcast views are read-only, and the copy costs little next to the kernel.
-        flat = [np.array(a, dtype=np.float64, order="C").reshape(-1) for a in arrays]
+        arrays = [np.asarray(x, dtype=np.float64) for x in (Fz, kappa, alpha, gamma, Vx, p, T,
+                                                             phit, omega)]  # fmt: skip
+        shape = np.broadcast_shapes(*(a.shape for a in arrays))
+        # one array type for the kernels (C-contiguous, writable, aligned): one compiled
+        # specialization. An input of that type and of the full shape is passed as it is (the
+        # kernels only read it); any other is broadcast into a new array.
+        flat = []
+        for a in arrays:
+            f = a.flags
+            if a.shape != shape or not (f.c_contiguous and f.writeable and f.aligned):
+                b = np.empty(shape)
+                np.copyto(b, a)
+                a = b
+            flat.append(a.reshape(-1))
         return shape, flat
 
     def evaluate(self, Fz, kappa, alpha, gamma=0.0, Vx=None, p=None, T=None, *, phit=0.0,

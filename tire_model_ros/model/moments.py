@@ -75,18 +75,16 @@ def My_rolling_resistance(P, uFz, kappa_raw, gamma, Vx, p, Fx, is_mf52) -> float
             * (speed_terms + (P[c.QSY5] + P[c.QSY6] * (Fz / Fz0)) * gamma * gamma)
             * (vm.pow(Fz / Fz0, P[c.QSY7]) * vm.pow(p / P[c.NOMPRES], P[c.QSY8]))
         )
-    if Vx == 0.0:
-        return 0.0
-    if Vx < 0.0:
-        My = -My
+    # Written as selects, not branches, so that the sample loop vectorises (the factors are
+    # +-1 or the ramp: the products are those of the branches, bit for bit).
     high = P[c.VXLOW] / abs(Vx) - 1.0
     low = -1.0 - P[c.VXLOW] - high
-    if low <= kappa_raw <= high:
-        # sin ramp from 0 at kappa = -1 (wheel locked) to 1 at kappa = high
-        My = My * vm.sin(0.5 * math.pi * (kappa_raw + 1.0) / (high + 1.0))
-    elif kappa_raw < low:
-        My = -My
-    return My
+    # sin ramp from 0 at kappa = -1 (wheel locked) to 1 at kappa = high
+    ramp = vm.sin(0.5 * math.pi * (kappa_raw + 1.0) / (high + 1.0))
+    fade = ramp if low <= kappa_raw <= high else (-1.0 if kappa_raw < low else 1.0)
+    backwards = -1.0 if Vx < 0.0 else 1.0
+    My = (My * backwards) * fade
+    return 0.0 if Vx == 0.0 else My
 
 
 @kernel
