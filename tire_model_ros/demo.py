@@ -39,7 +39,7 @@ MATCH_TOL_N = 1.0
 # The whole session is replayed through the node (its hidden states build up over it), every
 # REPLAY_EVERY-th slip sample (20 Hz of the rig's 100 Hz), at REPLAY_RATE times real time.
 REPLAY_EVERY = 5
-REPLAY_RATE = 10.0
+REPLAY_RATE = 20.0
 
 
 _STEP = {"now": "set-up"}
