@@ -73,6 +73,11 @@ def test_inputs_and_outputs_follow_the_effects():
     assert st.P_last == pytest.approx(abs(out[0] * Vx * kappa) + abs(out[1] * Vx * math.tan(alpha)))
     st.outputs((math.nan,) * 6, 1.0, Fz, kappa, alpha, Vx, 6000.0)
     assert math.isfinite(st.P_last)  # a bad sample does not poison the states
+    st.idle(2.0)  # off the ground: the last power is held over this step, then none
+    y0 = st.y["thermal"]
+    assert st.P_last == 0.0
+    st.idle(5.0)
+    assert st.y["thermal"] == pytest.approx(y0 * math.exp(-3.0 / 3.0), rel=1e-12)
 
 
 def test_effects_file_round_trip(tmp_path):

@@ -197,6 +197,11 @@ class EffectState:
             a = math.exp(-dt / node.tau_s)
             self.y[name] = a * self.y[name] + (1.0 - a) * u
 
+    def idle(self, t_s: float) -> None:
+        """A sample with the wheel off the ground: the nodes step to ``t_s`` and cool."""
+        self._step(t_s)
+        self.P_last = 0.0
+
     @property
     def temperature_C(self) -> float:
         return self.fx.T_amb_C + self.y["thermal"]

@@ -172,6 +172,8 @@ class WheelState:
         if Fz <= 0.0:
             self.no_contact += 1
             self.forces_out += 1
+            if self.effects is not None:
+                self.effects.idle(stamp)
             return ZERO_WRENCH, events
         p, sp = self.pressure.get(now, timeouts["pressure"], nominal.p)
         T, sT = self.temperature.get(now, timeouts["temperature"], nominal.T)
