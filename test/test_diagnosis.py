@@ -175,6 +175,9 @@ def test_offset_is_named_constant_and_sized(model):
         first.parameters["offset_Fy_0"] + first.parameters.get("offsetperFz_Fy_0", 0.0) * Fz / FN
     )
     assert abs(Fy_at_rest) == pytest.approx(0.03 * Fz, rel=0.2)
+    carried = diag.node_effects().for_wheel(wheels[0].prefix).offsets["Fy"]
+    assert carried == (first.parameters["offset_Fy_0"],
+                       first.parameters.get("offsetperFz_Fy_0", 0.0))
 
 
 def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):

@@ -103,6 +103,9 @@ def test_effects_file_round_trip(tmp_path):
         (lambda d: d["wheels"]["/w"]["speed_table"].update(ln_Vs=[1, 0, 2]), ["speed_table"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(mu=[1, -1, 1]), ["speed_table"]),
         (lambda d: d["wheels"]["/w"].update(T_amb_C="hot"), ["T_amb_C"]),
+        (lambda d: d["wheels"]["/w"].update(offsets=[1, 2]), ["wheels./w.offsets"]),
+        (lambda d: d.update(not_carried=5), ["not_carried"]),
+        (lambda d: d["wheels"]["/w"]["gas"].update(gain_per_W=float("nan")), ["gas.gain_per_W"]),
     ],
 )
 def test_malformed_effects_file_names_file_and_key(tmp_path, mangle, words):

@@ -430,12 +430,13 @@ class Offset(Component):
     def carry(self, x, ctx, wi):
         if self.drift_at is not None:
             return None
-        offsets: dict[str, list[float]] = {}
+        offsets: dict[str, tuple[float, float]] = {}
         for k, v in zip(self.pnames, x, strict=True):
             kind, ch, i = k.split("_")
             if int(i) == wi:
-                offsets.setdefault(ch, [0.0, 0.0])[kind != "offset"] = float(v)
-        return {"offsets": {ch: (a, b) for ch, (a, b) in offsets.items()}}
+                a, b = offsets.get(ch, (0.0, 0.0))  # N, N at FNOMIN
+                offsets[ch] = (float(v), b) if kind == "offset" else (a, float(v))
+        return {"offsets": offsets}
 
 
 class CoefRefit(Component):

@@ -110,7 +110,10 @@ class Effects:
         if not isinstance(wheels, Mapping) or not wheels:
             raise EffectsError(f"{where}: key 'wheels' must map wheel prefixes to effects")
         out = {str(p): _wheel(w, f"{where}: wheels.{p}") for p, w in wheels.items()}
-        return cls(out, str(doc.get("tir", "")), tuple(map(str, doc.get("not_carried", ()))))
+        not_carried = doc.get("not_carried", [])
+        if not isinstance(not_carried, list):
+            raise EffectsError(f"{where}: key 'not_carried' must be a list of labels")
+        return cls(out, str(doc.get("tir", "")), tuple(map(str, not_carried)))
 
 
 def _number(d: Mapping, key: str, where: str, lo: float = -math.inf) -> float:
@@ -132,7 +135,9 @@ def _wheel(d: object, where: str) -> WheelEffects:
     nodes = {k: _node(d[k], f"{where}.{k}") for k in ("thermal", "bulk", "gas") if k in d}
     loss = _number(d["bulk"], "mu_loss", f"{where}.bulk") if "bulk" in d else 0.0
     offsets = {}
-    for ch, o in (d.get("offsets") or {}).items():
+    if not isinstance(d.get("offsets", {}), Mapping):
+        raise EffectsError(f"{where}.offsets: expected an object of channels")
+    for ch, o in d.get("offsets", {}).items():
         if ch not in ("Fx", "Fy", "Mz") or not isinstance(o, Mapping):
             raise EffectsError(f"{where}.offsets.{ch}: expected Fx, Fy or Mz with N, N_at_FNOMIN")
         w = f"{where}.offsets.{ch}"
