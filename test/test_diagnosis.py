@@ -162,6 +162,18 @@ def test_friction_step_is_named_drift_and_located(model):
         diag.score_reference(short)
 
 
+def test_wear_is_drift_not_a_tread_node_stretched_to_its_bound(model):
+    """Wear that grows with tread heat (the confuser of concealed heating), on the seed where
+    the slow thermal node came within its margin of drift: its tread node ran to the bound of
+    its time constant, which is no heating of seconds, so drift is named and nothing else."""
+    wheels, _ = simulate_session(
+        model, "flat_trac", effects={"wear": {"loss_per_km": 0.08, "abrasion_per_K": 0.032}},
+        omit=["temperature"], seed=41,
+    )
+    diag = diagnose(wheels, model, seed=0)
+    assert [e.name for e in diag.effects] == ["drift"], diag.details["log"]
+
+
 def test_offset_is_named_constant_and_sized(model):
     """A ply-steer offset (3 % of Fz at alpha = 0) passes the constancy guards and is sized."""
     wheels, _ = _session(model, {"offset": True})

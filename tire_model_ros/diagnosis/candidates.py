@@ -179,7 +179,8 @@ class ThermalHidden(Component):
         if mode != "memoryless":  # the time constant is the non-convex direction
             self.starts = [{"tau_T_s": 2.0}, {"tau_T_s": 15.0}]
 
-    def _tau(self, x) -> float:
+    def tau_s(self, x) -> float:
+        """The node's time constant [s] (the memoryless control: ~0)."""
         return 1e-3 if self.mode == "memoryless" else float(x[0])
 
     def coef(self, x, ctx):
@@ -188,10 +189,10 @@ class ThermalHidden(Component):
 
     def inputs(self, x, ctx, w, inp):
         P = w.P[w.scramble] if self.mode == "scrambled" else w.P
-        inp["T"] = ctx.T_amb + thermal_state_K(P, w.t, self._tau(x), ctx.k_thermal)
+        inp["T"] = ctx.T_amb + thermal_state_K(P, w.t, self.tau_s(x), ctx.k_thermal)
 
     def carry(self, x, ctx, wi):
-        return {"T_amb_C": ctx.T_amb, "thermal": Node(self._tau(x), ctx.k_thermal)}
+        return {"T_amb_C": ctx.T_amb, "thermal": Node(self.tau_s(x), ctx.k_thermal)}
 
 
 class ThermalBulk(Component):

@@ -46,6 +46,9 @@ OFFSET_MIN_SIGMA = 2.0
 # An offset's reading may differ early/late or cold/hot by this share of its size before the
 # difference (if also significant) says that it is not a constant.
 OFFSET_REL_TOL = 0.25
+# A hidden tread node whose fitted time constant reaches this share of its upper bound has found
+# no heating of seconds (``_tread_found``).
+TREAD_TAU_FOUND = 0.9
 REST_KAPPA, REST_ALPHA = 0.002, np.radians(0.2)  # slip at rest: where an offset is read
 # Share of a combined-slip candidate's held-out improvement that must come from the samples
 # where both slips are non-zero (the only place its terms act).
@@ -621,6 +624,22 @@ def _slow_node(tr: sel.Trial) -> bool:
     return any(p.extends for p in tr.parts)
 
 
+def _tread_found(tr: sel.Trial) -> bool:
+    """Every fit of the trial has its hidden tread node's time constant inside its range.
+
+    The tread heats and cools within seconds (PHYSICS.md: the loop inside a sweep, recovery
+    after a pause); a node pushed to TAU_FAST_MAX_S has found none of that and only follows a
+    slow trend, which is not evidence of heating over drift.
+    """
+    for f in tr.fits:
+        for c, xc in zip(f.components, cd.split_x(f.components, f.x), strict=True):
+            if not isinstance(c, cd.ThermalHidden):
+                continue
+            if c.tau_s(xc) >= TREAD_TAU_FOUND * cd.TAU_FAST_MAX_S:
+                return False
+    return True
+
+
 def _choose(trials, ctx, cur, splits, log) -> sel.Trial | None:
     """The best passing trial after Occam's rule, the delay sign check and the controls."""
     cur_fits = cur[0]
@@ -640,8 +659,9 @@ def _choose(trials, ctx, cur, splits, log) -> sel.Trial | None:
         if c.name == "combined_slip" and not _combined_where_both(tr, ctx, cur_fits, splits, log):
             continue
         if c.name == "drift":
-            # Only a slow node that itself passes (and beats its controls) may stand in for drift.
-            bulk = [t for t in trials if _slow_node(t) and sel.passes(t)]
+            # Only a slow node that itself passes (and beats its controls), with a tread node
+            # of seconds, may stand in for drift.
+            bulk = [t for t in trials if _slow_node(t) and sel.passes(t) and _tread_found(t)]
             if (
                 bulk
                 and bulk[0].heldout.rms <= tr.heldout.rms * (1.0 + sel.DRIFT_VS_BULK_MARGIN)
