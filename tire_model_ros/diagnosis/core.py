@@ -846,22 +846,22 @@ def _offset_refused(key, ms, moves, ctx, log) -> bool:
     ``_inconstant_channels`` (``ms``: the two folds' readings; ``moves``: its differences by
     state), logging the reason."""
     ch, prefix = key[1], ctx.wheels[key[0]].prefix
-    if len(ms) != 2 or not all(math.isfinite(se) for _, se in ms):
-        return False
-    (m0, s0), (m1, s1) = ms
-    size = 0.5 * abs(m0 + m1)
-    z = abs(m1 - m0) / max(math.hypot(s0, s1), 1e-9)
-    if z > OFFSET_FOLDS_Z:
-        log.append(
-            f"offset on {ch} rejected: {prefix} read at rest without it, the two folds' "
-            f"sweeps disagree ({m0:+.1f} vs {m1:+.1f} N, {z:.1f} standard errors): it "
-            "depends on how the other effects were fitted"
-        )
-        return True
-    if size < OFFSET_MIN_SIGMA * ctx.sigma[ch]:
-        log.append(f"offset on {ch} rejected: {prefix} reads {size:.1f} N at rest, below "
-                   f"{OFFSET_MIN_SIGMA:g} noise sigmas ({ctx.sigma[ch]:.1f} N)")
-        return True
+    size = 0.0  # unknown without both readings: any significant difference then counts
+    if len(ms) == 2 and all(math.isfinite(se) for _, se in ms):
+        (m0, s0), (m1, s1) = ms
+        size = 0.5 * abs(m0 + m1)
+        z = abs(m1 - m0) / max(math.hypot(s0, s1), 1e-9)
+        if z > OFFSET_FOLDS_Z:
+            log.append(
+                f"offset on {ch} rejected: {prefix} read at rest without it, the two folds' "
+                f"sweeps disagree ({m0:+.1f} vs {m1:+.1f} N, {z:.1f} standard errors): it "
+                "depends on how the other effects were fitted"
+            )
+            return True
+        if size < OFFSET_MIN_SIGMA * ctx.sigma[ch]:
+            log.append(f"offset on {ch} rejected: {prefix} reads {size:.1f} N at rest, below "
+                       f"{OFFSET_MIN_SIGMA:g} noise sigmas ({ctx.sigma[ch]:.1f} N)")
+            return True
     for label, d, zd in moves:
         if zd > sel.MIN_T_ALT and abs(d) > OFFSET_REL_TOL * size:
             log.append(f"offset on {ch} rejected: {prefix} residual at rest differs by "
