@@ -672,6 +672,9 @@ def test_effects_file_runs_hidden_states_live_and_bad_file_rejected(client, tmp_
                        "-p", "wheels:=['/fx']", "-p", "timeout.load:=0.0",
                        "-p", "timeout.velocity:=0.0"], client)
     try:
+        from diagnostic_msgs.msg import DiagnosticArray
+
+        diags = client.collect(DiagnosticArray, "/diagnostics")
         wheel = Wheel(client, "/fx")
         client.wait_matched(wheel.pubs(), 90, proc)
         model = TireModel.from_file(DEFAULT_TIR)
@@ -692,6 +695,9 @@ def test_effects_file_runs_hidden_states_live_and_bad_file_rejected(client, tmp_
         np.testing.assert_allclose(got, np.array(want), rtol=1e-9, atol=1e-6)
         plain = expected(model, inputs, slips)
         assert st.temperature_C > 30.0 and np.max(np.abs(got[:, 1] - plain[:, 1])) > 100.0
+        tread = f"{st.temperature_C:.2f}"  # reported on /diagnostics
+        wait_for(lambda: _diag_values(diags, "tire_fx: /fx", 0.0).get("effects.tread_C") == tread,
+                 10, "the hidden tread temperature on /diagnostics")
 
         bad = tmp_path / "bad.effects.json"
         bad.write_text(good.read_text().replace('"tau_s": 4.0', '"tau_s": -4.0'))

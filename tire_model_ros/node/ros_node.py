@@ -519,6 +519,7 @@ class TireModelNode(Node):
         values = {f"tir_file{'.' + k if k else ''}": s.path for k, s in self.slots.items()}
         values.update(
             {
+                "effects_file": str(self.get_parameter("effects_file").value),
                 "limits": str(self.limits),
                 "reloads": str(self.reloads),
                 "parameter_rejections": str(self.param_rejections),
@@ -557,6 +558,9 @@ class TireModelNode(Node):
             ch = getattr(w, name)
             values[f"{name}.value"] = "never received" if ch.value is None else repr(ch.value)
             values[f"{name}.age_s"] = "" if ch.value is None else f"{now - ch.t_rx:.3f}"
+        if w.effects is not None:  # the hidden states, as an engineer would watch them
+            values["effects.tread_C"] = f"{w.effects.temperature_C:.2f}"
+            values.update({f"effects.{k}": f"{v:.4g}" for k, v in w.effects.y.items()})
         if w.last_error:
             values["last_model_error"] = w.last_error
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
