@@ -151,6 +151,21 @@ def test_friction_step_is_named_drift_and_located(model):
     assert not np.any(between & moving & diag.train_mask[prefix]), (at, fitted)
     assert first.parameters["step_mu_loss"] == pytest.approx(0.07, abs=0.015)
     assert any(n.startswith("drift") for n in diag.node_effects().not_carried)  # history
+    # The two selection folds must see one step: the same sign and size within a factor 2
+    # (on a speed session one fold once put a 5.7 % gain at t = 0 s, the other 0.3 % at 159 s).
+    from tire_model_ros.diagnosis import candidates as cd
+    from tire_model_ros.diagnosis import core
+    from tire_model_ros.diagnosis import selection as sel
+
+    step = cd.FrictionStep(diag.models["ctx"])
+
+    def trial(*steps):
+        fits = [sel.Fit([step], np.array(x), 0.0, 0) for x in steps]
+        return sel.Trial(step, fits, sel.Score(0.0, 0, {}, {}))
+
+    assert core._step_agrees(trial((150.0, 0.07), (160.0, 0.06)), [])
+    assert not core._step_agrees(trial((0.1, -0.057), (159.0, -0.0027)), [])
+    assert not core._step_agrees(trial((150.0, 0.07), (150.0, -0.07)), [])
     # Against the noise-free twin: the model error falls. Not to zero here: the sweep right
     # after the step is held out, so where in its gap the step falls is unknowable.
     twin, _ = _session(model, {"mu_step": {"ratio": 0.93}, "noise": False})

@@ -46,6 +46,8 @@ OFFSET_MIN_SIGMA = 2.0
 # An offset's reading may differ early/late or cold/hot by this share of its size before the
 # difference (if also significant) says that it is not a constant.
 OFFSET_REL_TOL = 0.25
+# The two selection folds' friction steps must agree in size within this factor (_step_agrees).
+STEP_SIZE_RATIO = 2.0
 # A hidden tread node whose fitted time constant reaches this share of its upper bound has found
 # no heating of seconds (``_tread_found``).
 TREAD_TAU_FOUND = 0.9
@@ -640,6 +642,23 @@ def _tread_found(tr: sel.Trial) -> bool:
     return True
 
 
+def _step_agrees(tr: sel.Trial, log: list[str]) -> bool:
+    """Both selection fits of a friction step find a change of one sign and size (within a
+    factor STEP_SIZE_RATIO): a belt or road change is one event of the session, which each
+    fold's sweeps see alike; a step that one fold puts elsewhere or finds far smaller is
+    fitting noise."""
+    losses = []
+    for f in tr.fits:
+        for c, xc in zip(f.components, cd.split_x(f.components, f.x), strict=True):
+            if isinstance(c, cd.FrictionStep):
+                losses.append(float(xc[1]))
+    a, b = sorted(losses, key=abs)[:2] if len(losses) >= 2 else (1.0, 1.0)
+    if a * b > 0 and abs(b) <= STEP_SIZE_RATIO * abs(a):
+        return True
+    log.append(f"drift step rejected: the two folds' steps disagree ({losses})")
+    return False
+
+
 def _choose(trials, ctx, cur, splits, log) -> sel.Trial | None:
     """The best passing trial after Occam's rule, the delay sign check and the controls."""
     cur_fits = cur[0]
@@ -673,6 +692,8 @@ def _choose(trials, ctx, cur, splits, log) -> sel.Trial | None:
                 )
                 tr = bulk[0]
                 c = tr.component
+        if isinstance(c, cd.FrictionStep) and not _step_agrees(tr, log):
+            continue
         if c.name == "relaxation":
             delay = [t for t in trials if t.component.name == "time_delay" and sel.passes(t)]
             if delay and delay[0].heldout.rms <= tr.heldout.rms * (1.0 + sel.DELAY_OCCAM_MARGIN):
