@@ -688,10 +688,8 @@ def test_effects_file_runs_hidden_states_live_and_bad_file_rejected(client, tmp_
         got = wheel.results(stamps)
         st, want = EffectState(fx), []
         for (sec, ns), (kappa, alpha, gamma) in zip(stamps, slips, strict=True):
-            k, a, T, p, s = st.inputs(sec + 1e-9 * ns, kappa, alpha, 15.0, None, None,
-                                      nom.p, nom.T)
-            out = model.evaluate_one(5000.0, k, a, gamma, 15.0, p, T)
-            want.append(st.outputs(out, s, 5000.0, kappa, alpha, 15.0, nom.Fz))
+            want.append(st.evaluate(model, sec + 1e-9 * ns, 5000.0, kappa, alpha, gamma, 15.0,
+                                    None, None, nom.p, nom.T, nom.Fz))
         np.testing.assert_allclose(got, np.array(want), rtol=1e-9, atol=1e-6)
         plain = expected(model, inputs, slips)
         assert st.temperature_C > 30.0 and np.max(np.abs(got[:, 1] - plain[:, 1])) > 100.0

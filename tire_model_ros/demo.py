@@ -277,12 +277,9 @@ def offline(model, effects, w) -> np.ndarray:
     p = w.p if w.p is not None else [None] * len(w)
     rows = np.empty((len(w), 6))
     for i in range(len(w)):
-        k, a, T, p_i, s = st.inputs(float(w.t[i]), float(w.kappa[i]), float(w.alpha[i]),
-                                    float(Vx[i]), None, None if p[i] is None else float(p[i]),
-                                    nom.p, nom.T)
-        out = model.evaluate_one(float(w.Fz[i]), k, a, float(w.gamma[i]), float(Vx[i]), p_i, T)
-        rows[i] = st.outputs(out, s, float(w.Fz[i]), float(w.kappa[i]), float(w.alpha[i]),
-                             float(Vx[i]), nom.Fz)
+        rows[i] = st.evaluate(model, float(w.t[i]), float(w.Fz[i]), float(w.kappa[i]),
+                              float(w.alpha[i]), float(w.gamma[i]), float(Vx[i]), None,
+                              None if p[i] is None else float(p[i]), nom.p, nom.T, nom.Fz)
     return rows
 
 

@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tire_model_ros.model.states import Node
+from tire_model_ros.model.states import Node, gas_pressure_Pa
 
-from .thermal import delayed, gas_pressure_Pa, relaxed_slip, thermal_state_K
+from .thermal import delayed, relaxed_slip, thermal_state_K
 
 CHANNELS = ("Fx", "Fy", "Mz")
 # Convention for a hidden temperature (PHYSICS.md: gain and TT coefficients are not separately

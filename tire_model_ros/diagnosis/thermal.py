@@ -13,9 +13,6 @@ import math
 import numpy as np
 from numba import njit
 
-T_ABS0_C = 273.15  # 0 degC in K
-P_ATM_PA = 101325.0  # standard atmosphere [Pa], gauge -> absolute
-
 
 def frictional_power_W(Fx_N, Fy_N, V_mps, kappa, alpha_rad) -> np.ndarray:
     """Frictional power P_fric ~ |Fx V kappa| + |Fy V tan(alpha)| [W] (PHYSICS.md notation).
@@ -117,9 +114,3 @@ def delayed(x: np.ndarray, t_s: np.ndarray, tau_s: float) -> np.ndarray:
     if tau_s == 0.0:
         return np.asarray(x, dtype=np.float64).copy()
     return np.interp(t_s - tau_s, t_s, x)
-
-
-def gas_pressure_Pa(p0_gauge_Pa: float, rise_K: np.ndarray, T0_C: float) -> np.ndarray:
-    """Gauge pressure at constant volume after a gas-temperature rise: p_abs ~ T_abs."""
-    p0_abs = p0_gauge_Pa + P_ATM_PA
-    return p0_abs * (T0_C + T_ABS0_C + rise_K) / (T0_C + T_ABS0_C) - P_ATM_PA

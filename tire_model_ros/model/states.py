@@ -22,10 +22,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 FORMAT = "tire_model_ros.effects"
 VERSION = 1
-P_ATM_PA = 101325.0
-T_ABS0_C = 273.15
+P_ATM_PA = 101325.0  # standard atmosphere [Pa], gauge -> absolute
+T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 
 
@@ -159,15 +161,11 @@ def _wheel(d: object, where: str) -> WheelEffects:
                         offsets, table)
 
 
-def _interp(x: float, xs: tuple[float, ...], ys: tuple[float, ...]) -> float:
-    """Piecewise-linear interpolation, held constant outside the knots (as numpy.interp)."""
-    if x <= xs[0]:
-        return ys[0]
-    for i in range(1, len(xs)):
-        if x <= xs[i]:
-            f = (x - xs[i - 1]) / (xs[i] - xs[i - 1])
-            return ys[i - 1] + f * (ys[i] - ys[i - 1])
-    return ys[-1]
+def gas_pressure_Pa(p0_gauge_Pa, rise_K, T0_C: float):
+    """Gauge pressure at constant volume after a gas-temperature rise: p_abs ~ T_abs (numbers
+    or arrays; the diagnosis' gas node and the node's use this one form)."""
+    p0_abs = p0_gauge_Pa + P_ATM_PA
+    return p0_abs * (T0_C + T_ABS0_C + rise_K) / (T0_C + T_ABS0_C) - P_ATM_PA
 
 
 class EffectState:
@@ -181,6 +179,9 @@ class EffectState:
 
     def __init__(self, effects: WheelEffects) -> None:
         self.fx = effects
+        # the table as arrays once: numpy.interp, as the diagnosis evaluates it
+        self._table = None if effects.speed_table is None else tuple(
+            np.asarray(v, dtype=np.float64) for v in effects.speed_table)
         self.reset()
 
     def reset(self) -> None:
@@ -229,18 +230,26 @@ class EffectState:
         if p is None:
             p = p_nom
             if fx.gas is not None:
-                T0 = fx.T_amb_C + T_ABS0_C
-                p = (p_nom + P_ATM_PA) * (T0 + self.y["gas"]) / T0 - P_ATM_PA
+                p = gas_pressure_Pa(p_nom, self.y["gas"], fx.T_amb_C)
         s = 1.0
         if fx.bulk is not None:
             s *= 1.0 - fx.bulk_mu_loss * self.y["bulk"]
-        if fx.speed_table is not None:
+        if self._table is not None:
             Vs = abs(Vx) * math.hypot(kappa, math.tan(alpha))
-            s *= _interp(math.log(max(Vs, 1e-4)), *fx.speed_table)
+            s *= float(np.interp(math.log(max(Vs, 1e-4)), *self._table))
         s = max(s, MIN_MU_SCALE)
         if s != 1.0:
             kappa, alpha = kappa / s, math.atan(math.tan(alpha) / s)
         return kappa, alpha, T, p, s
+
+    def evaluate(self, model, t_s: float, Fz: float, kappa: float, alpha: float, gamma: float,
+                 Vx: float, T_C: float | None, p_Pa: float | None, p_nom: float, T_nom: float,
+                 FNOMIN: float, limits: bool = True) -> tuple[float, ...]:
+        """One sample of the improved model: :meth:`inputs`, ``model.evaluate_one`` at them,
+        :meth:`outputs` (Fx, Fy, Fz, Mx, My, Mz). What the node computes per slip message."""
+        k, a, T, p, s = self.inputs(t_s, kappa, alpha, Vx, T_C, p_Pa, p_nom, T_nom)
+        out = model.evaluate_one(Fz, k, a, gamma, Vx, p, T, limits=limits)
+        return self.outputs(out, s, Fz, kappa, alpha, Vx, FNOMIN)
 
     def _offset(self, ch: str, load: float) -> float:
         a, b = self.fx.offsets.get(ch, (0.0, 0.0))

@@ -181,18 +181,18 @@ class WheelState:
         for name, s, value in (("pressure", sp, p), ("temperature", sT, T), ("velocity", sV, Vx)):
             if s == "stale":
                 events.append(f"fallback.{name}: {name} stale, using nominal {value}")
-        fx, k, a, s = self.effects, kappa, alpha, 1.0
         try:
-            if fx is not None:
-                k, a, T, p, s = fx.inputs(stamp, kappa, alpha, Vx, T if sT == "ok" else None,
-                                          p if sp == "ok" else None, nominal.p, nominal.T)
-            out = model.evaluate_one(Fz, k, a, gamma, Vx, p, T, limits=limits)
+            if self.effects is None:
+                out = model.evaluate_one(Fz, kappa, alpha, gamma, Vx, p, T, limits=limits)
+            else:
+                out = self.effects.evaluate(
+                    model, stamp, Fz, kappa, alpha, gamma, Vx, T if sT == "ok" else None,
+                    p if sp == "ok" else None, nominal.p, nominal.T, nominal.Fz, limits,
+                )
         except Exception as exc:  # whatever the model raises, the node keeps running
             self.model_errors += 1
             self.last_error = f"{type(exc).__name__}: {exc}"
             return None, [f"model_error: {self.last_error}"]
-        if fx is not None:
-            out = fx.outputs(out, s, Fz, kappa, alpha, Vx, nominal.Fz)
         if not all(math.isfinite(x) for x in out):
             self.output_nonfinite += 1
             return None, [f"output_nonfinite: inputs Fz={Fz} kappa={kappa} alpha={alpha}"]
