@@ -20,7 +20,9 @@ setup(
     zip_safe=True,
     maintainer="tire_model_ros developers",
     maintainer_email="dev@tire-model-ros.invalid",
-    description="Extended Magic Formula tyre model: wheel-force node, refit tool, mismatch diagnosis.",
+    description=(
+        "Extended Magic Formula tyre model: wheel-force node, refit tool, mismatch diagnosis."
+    ),
     license="BSD-3-Clause",
     python_requires=">=3.11",
     entry_points={

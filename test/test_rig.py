@@ -286,6 +286,19 @@ def test_wear_never_recovers(model):
     assert r2 < r1 - 0.01
 
 
+def test_belt_stop_halts_the_belt_and_carries_the_friction_step(model):
+    w, truth = _sim(model, "lateral_sweeps", {"mu_step": {"ratio": 0.9}},
+                    programme_options={"stop_s": 20.0})
+    segs = truth["wheels"][w[0].prefix]["segments"]
+    stop = next(g for g in segs if g["label"] == "belt stop")
+    assert stop["t1_s"] - stop["t0_s"] == pytest.approx(20.0, abs=0.02)
+    t = w[0].t - w[0].t[0]
+    inside = (t > stop["t0_s"] + 0.1) & (t < stop["t1_s"] - 0.1)
+    assert np.all(np.abs(w[0].Vx[inside]) < 0.2)  # belt-speed noise only
+    at = truth["wheels"][w[0].prefix]["hidden_summary"]["mu_step_at_s"]
+    assert at == pytest.approx(0.5 * (stop["t0_s"] + stop["t1_s"]), abs=0.01)
+
+
 def test_mu_step_between_runs(model):
     w, _ = _sim(model, "camber", {"mu_step": {"ratio": 0.9, "at_s": 40.0}})
     s = w[0]

@@ -567,14 +567,17 @@ class FrictionStep(Component):
     """A step in friction at a fitted time (belt or road change between runs).
 
     mu scale = 1 - d H(t - t_c), with H a logistic of width STEP_WIDTH_S (after ``settle``, a
-    ramp across the gap between fitted sweeps that holds t_c). The cost is flat in
-    t_c across a pause (no force there) and has a local minimum at each one, so the fit
-    starts from every pause (at most MAX_STARTS of them, evenly picked), where a change
-    between runs happens, and keeps the best.
+    ramp across the gap between fitted sweeps that holds t_c, or a step at the belt stop in
+    that gap). The cost is flat in t_c across a pause (no force there) and has a local minimum
+    at each one, so the fit starts from every pause (at most MAX_STARTS of them, evenly
+    picked), where a change between runs happens, and keeps the best.
     """
 
     STEP_WIDTH_S = 1.0
     MAX_STARTS = 24
+    # A belt stop: the belt speed below STOP_SPEED_MPS for STOP_MIN_S or more (between runs).
+    STOP_SPEED_MPS = 0.5
+    STOP_MIN_S = 5.0
 
     def __init__(self, ctx: Context):
         super().__init__(
@@ -594,17 +597,35 @@ class FrictionStep(Component):
         )
         if len(mids) > self.MAX_STARTS:
             mids = [mids[i] for i in np.linspace(0, len(mids) - 1, self.MAX_STARTS).astype(int)]
-        self.starts = [{"t_step_s": m} for m in mids]
+        self.stops = sorted(m for w in ctx.wheels for m in self._stops(w))
+        self.starts = [{"t_step_s": m} for m in sorted({*mids, *self.stops})]
         self.gap: tuple[float, float] | None = None  # set by ``settle``: where t_c may lie
 
+    @classmethod
+    def _stops(cls, w: Wheel) -> list[float]:
+        """Middles of the wheel's belt stops [s from start]."""
+        V = w.inputs["V"]
+        if V is None:
+            return []
+        halted = np.concatenate([[False], np.abs(V) < cls.STOP_SPEED_MPS, [False]])
+        edges = np.flatnonzero(np.diff(halted.astype(np.int8)))
+        return [
+            0.5 * (w.t[i0] + w.t[i1 - 1])
+            for i0, i1 in zip(edges[::2], edges[1::2], strict=True)
+            if w.t[i1 - 1] - w.t[i0] >= cls.STOP_MIN_S
+        ]
+
     def settle(self, x, ctx, rows):
-        """The change point to the middle of the gap between the fitted sweeps it lies in.
+        """The change point to the belt stop in the gap between the fitted sweeps it lies in,
+        else to the middle of the gap.
 
         Between two fitted sweeps (pauses, held-out sweeps) the cost is flat in t_c: the data
-        place the change anywhere in the gap. Its time is reported at the middle, and across
-        the gap the model predicts the expected friction for a change time uniform in it (a
-        linear ramp): a sweep in the gap that the fit did not see is then never given the
-        wrong side of the step in full.
+        place the change anywhere in the gap. A belt or road change happens between runs
+        (PHYSICS.md), so a belt stop in the gap is where it is. Without one, its time is
+        reported at the middle, and across the gap the model predicts the expected friction
+        for a change time uniform in it (a linear ramp): a sweep in the gap that the fit did
+        not see is then never given the wrong side of the step in full. Several stops in the
+        gap: the same ramp, from the first stop to the last.
         """
         tc = float(x[0])
         seen = np.concatenate(
@@ -619,6 +640,9 @@ class FrictionStep(Component):
         if len(before) and len(after):
             x = np.array(x, dtype=float)
             self.gap = (float(before.max()), float(after.min()))
+            stops = [m for m in self.stops if self.gap[0] < m < self.gap[1]]
+            if stops:
+                self.gap = (stops[0], stops[-1])
             x[0] = 0.5 * sum(self.gap)
         return x
 

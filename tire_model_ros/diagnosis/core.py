@@ -134,7 +134,10 @@ class Diagnosis:
 
         Returns
         -------
-        {"heldout_baseline": {ch: {"rmse": N}}, "heldout_improved": {...}} as in ``fit``.
+        {"heldout_baseline": {ch: {"rmse": N}}, "heldout_improved": {...}} as in ``fit``, and
+        "heldout_floor": the twin's forces against the diagnosed recording's on the same
+        samples, the held-out RMSE of the true physics itself (the sensor noise): no model
+        scores below it on the recording.
 
         Raises
         ------
@@ -161,7 +164,9 @@ class Diagnosis:
                 out = cd.predict(comps, x, ref, wi, rows)
                 preds[w.prefix].update({f"{kind}_{ch}": out[ch] for ch in w.meas})
         fit = _fit_json(ref, ws, preds)
-        return {k: fit[k] for k in ("heldout_baseline", "heldout_improved")}
+        out = {k: fit[k] for k in ("heldout_baseline", "heldout_improved")}
+        out["heldout_floor"] = _floor(ctx.wheels, ws)
+        return out
 
 
 # --- preparation ------------------------------------------------------------------------------
@@ -1113,6 +1118,22 @@ def _improved_model(ctx, comps, x):
     except ValueError:
         upd.pop("LMUV", None)
         return ctx.model.with_params(upd)
+
+
+def _floor(measured: list, twins: list) -> dict:
+    """Held-out RMSE of the twins' forces against the measured ones, per channel [N, N m]."""
+    out = {}
+    for ch in ("Fx", "Fy", "Mz"):
+        e = [
+            (t.meas[ch] - m.meas[ch])[m.fold == 2]
+            for m, t in zip(measured, twins, strict=True)
+            if ch in m.meas and ch in t.meas
+        ]
+        if e:
+            e = np.concatenate(e)
+            e = e[np.isfinite(e)]
+            out[ch] = {"rmse": _num(math.sqrt(float(e @ e) / len(e)) if len(e) else math.nan)}
+    return out
 
 
 def _fit_json(ctx, ws, preds) -> dict:

@@ -27,7 +27,9 @@ Options (``programme_options``): ``repeats`` (int, default 1: the main body is r
 sweep amplitude, default 10), ``kappa_max`` (longitudinal amplitude, default 0.15),
 ``speed`` [m/s] (default LONGVL), ``ambient_C`` (default 25), ``vary_pressure`` (default: True
 unless the pressure channel is omitted), ``laps`` (track, default 2), ``soak_s`` and
-``soak_deg`` (flat_trac's heat soak: duration, default 25 s, and slip angle, default 5 deg).
+``soak_deg`` (flat_trac's heat soak: duration, default 25 s, and slip angle, default 5 deg),
+``stop_s`` (flat_trac, lateral_sweeps: a belt stop of this many seconds between two runs,
+after the load and pressure blocks; default 0, none).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ DEG = math.pi / 180.0
 G_ACC = 9.81  # m/s^2
 
 RIG_PREFIX = "/rig/wheel"
+BELT_STOP = "belt stop"  # label of the pause where the belt halts between two runs
 CAR_PREFIXES = ("/car/fl", "/car/fr", "/car/rl", "/car/rr")
 
 
@@ -170,6 +173,14 @@ class RigBuilder:
         m = self._samples(duration_s)
         self._append("pause", label, np.zeros(m), np.zeros(m))
 
+    def belt_stop(self, duration_s: float) -> None:
+        """The belt halted between two runs (speed ramped to zero, held, ramped back), where an
+        operator changes or conditions the belt; the tyre stays loaded and cools."""
+        speed = self.state["Vx"]
+        self.set_state(Vx=0.0, duration_s=3.0)
+        self.pause(duration_s, label=BELT_STOP)
+        self.set_state(Vx=speed, duration_s=3.0)
+
     def _path(self, points: list[float], rate_per_s: float) -> np.ndarray:
         """Piecewise-linear path through ``points`` at constant rate, sampled at fs."""
         pts = np.asarray(points, dtype=float)
@@ -292,6 +303,8 @@ def _flat_trac(b: RigBuilder, opt: dict) -> None:
                 b.longitudinal_sweep(kmax, label=f"longitudinal p={f:g}NOMPRES")
                 b.pause(2.0)
             b.set_state(p=ty.NOMPRES, duration_s=3.0)
+        if opt["stop_s"] > 0:  # the end of the first run: load/pressure, then the rest
+            b.belt_stop(float(opt["stop_s"]))
         for rate in (1.5, 6.0):  # two sweep rates
             b.lateral_sweep(A, rate_deg_s=rate, label=f"lateral rate={rate:g}deg/s")
             b.pause(2.0)
@@ -329,6 +342,8 @@ def _lateral_sweeps(b: RigBuilder, opt: dict) -> None:
             b.lateral_sweep(A, label=f"lateral Fz={f:g}FNOMIN")
             b.pause(2.0)
         b.set_state(Fz=F)
+        if opt["stop_s"] > 0:
+            b.belt_stop(float(opt["stop_s"]))
         for rate in (1.5, 6.0):
             b.lateral_sweep(A, rate_deg_s=rate, label=f"lateral rate={rate:g}deg/s")
             b.pause(2.0)
@@ -439,7 +454,7 @@ PROGRAMMES = (*_RIG, "track")
 
 _DEFAULTS = {"repeats": 1, "rate_scale": 1.0, "amplitude_deg": 10.0, "kappa_max": 0.15,
              "speed": None, "ambient_C": 25.0, "vary_pressure": None, "laps": 2,
-             "soak_s": 25.0, "soak_deg": 5.0}
+             "soak_s": 25.0, "soak_deg": 5.0, "stop_s": 0.0}
 
 
 def _options(tyre: TyreInfo, options: Mapping | None, omit) -> dict:
@@ -457,6 +472,8 @@ def _options(tyre: TyreInfo, options: Mapping | None, omit) -> dict:
         raise ValueError("programme options: repeats and laps must be >= 1, rate_scale > 0")
     if not 1.0 <= float(opt["soak_s"]) <= 3600.0 or not 0.0 < float(opt["soak_deg"]) <= 20.0:
         raise ValueError("programme options: soak_s must be in [1, 3600] s, soak_deg in (0, 20]")
+    if not 0.0 <= float(opt["stop_s"]) <= 3600.0:
+        raise ValueError("programme options: stop_s must be in [0, 3600] s")
     opt["rate_scale"] = float(opt["rate_scale"])
     return opt
 

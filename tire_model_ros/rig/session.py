@@ -31,7 +31,7 @@ import numpy as np
 from ..model import TireModel
 from ..recording.series import WheelSeries
 from . import effects as fx
-from .programmes import Programme, TyreInfo, WheelProgramme, build_programme
+from .programmes import BELT_STOP, Programme, TyreInfo, WheelProgramme, build_programme
 from .thermal import (
     HeatingParams,
     frictional_power,
@@ -139,7 +139,7 @@ def _static_friction(prog, tyre, V, kappa, alpha, eff) -> tuple[np.ndarray, floa
     step_at = None
     if "mu_step" in eff:
         ms = eff["mu_step"]
-        step_at = ms["at_s"] if ms["at_s"] >= 0 else _mid_run_boundary(prog)
+        step_at = ms["at_s"] if ms["at_s"] >= 0 else _between_runs(prog)
         mu *= np.where(np.arange(n) / prog.rate_hz >= step_at, ms["ratio"], 1.0)
     return mu, step_at
 
@@ -256,8 +256,12 @@ def _simulate_wheel(model: TireModel, tyre: TyreInfo, prog: Programme, wp: Wheel
     return series, truth
 
 
-def _mid_run_boundary(prog: Programme) -> float:
-    """The segment start nearest the middle of the session [s from start]."""
+def _between_runs(prog: Programme) -> float:
+    """Where a belt change falls [s from start]: the middle of the first belt stop, else the
+    segment start nearest the middle of the session."""
+    stops = [s for s in prog.wheels[0].segments if s.label == BELT_STOP]
+    if stops:
+        return 0.5 * (stops[0].i0 + stops[0].i1) / prog.rate_hz
     starts = np.array([s.i0 for s in prog.wheels[0].segments if s.kind != "transition"])
     mid = prog.n / 2
     return float(starts[np.argmin(np.abs(starts - mid))] / prog.rate_hz)
