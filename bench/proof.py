@@ -31,9 +31,11 @@ Scoring (printed, and written as proof.json / proof.md into the output dir):
   command replays both fitted models on the twin and scores them on the same held-out samples
   (``--reference``). The raw RMSE cannot fall below the sensor noise (on the nulls about 45 N:
   force noise and slip/load noise through the slip stiffness); the clean one can.
-- the floor: the twin's true forces against the measured ones on the same held-out samples,
-  the raw RMSE of the true physics itself. No model scores below it, so a recording whose
-  floor exceeds half its before cannot be halved on the raw measure by any model; the
+- the floor: the raw held-out RMSE of the true physics itself on the recording, from the
+  twin: its true forces against the measured ones (force noise) and the fitted model on the
+  recorded inputs against the same model on the true ones (input noise through the slip
+  stiffness), as independent variances. On the nulls it equals the raw RMSE. A recording
+  whose floor exceeds half its before cannot be halved on the raw measure by any model; the
   totals say on how many of the others the raw measure halved.
 
 Targets: >= 90 % named right, 0 false effects on nulls, held-out RMSE halved on all (each
@@ -152,7 +154,7 @@ class Outcome:
     after: float = math.nan
     clean_before: float = math.nan  # the same against the noise-free twin (model error)
     clean_after: float = math.nan
-    floor: float = math.nan  # the true forces (twin) against the measured ones, held out [N]
+    floor: float = math.nan  # raw held-out RMSE of the true physics on the recording [N]
     seconds: float = math.nan
     error: str = ""
     rig_words: list[str] | None = None  # the words the rig's truth file expects
@@ -193,8 +195,7 @@ class Outcome:
 
     @property
     def attainable(self) -> bool | None:
-        """Whether the true physics itself halves the raw measure (its floor <= before / 2):
-        no model scores below the sensor noise on the measured forces."""
+        """Whether the true physics itself halves the raw measure (its floor <= before / 2)."""
         if not self.case.truth or not math.isfinite(self.floor):
             return None
         return bool(self.floor <= 0.5 * self.before)
@@ -453,9 +454,9 @@ PHYSICS_NOTE = (
     "the noise-free twins were moved out of the bags' folder before each diagnosis, which saw "
     "only the bag and the .tir file; the twin is read after the diagnosis is complete. "
     "Raw: held-out RMSE against the measured forces (on the nulls ~46 N: sensor noise on "
-    "forces and on slip/load). Floor: the twin's true forces against the measured ones on the "
-    "same held-out samples, the raw RMSE of the true physics itself (force noise); no model "
-    "scores below it, so where it exceeds half the before, no model halves the raw measure. "
+    "forces and on slip/load). Floor: the raw RMSE the true physics itself scores on the same "
+    "held-out samples (force noise from the twin's true forces, input noise through the "
+    "fitted model); where it exceeds half the before, no model halves the raw measure. "
     "Clean: the same fitted models replayed on the twin's true inputs, against its true "
     "forces (model error)."
 )

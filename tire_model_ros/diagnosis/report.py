@@ -210,7 +210,10 @@ def _markdown(
         "",
         "RMSE in N (N m for Mz); NRMSE = RMSE / (max − min of the measured channel). "
         "*Before* is the given .tir model, *after* the model with the effects above. "
-        "Held-out figures are on whole sweeps the fit did not see.",
+        "Held-out figures are on whole sweeps the fit did not see. "
+        "The effects are chosen and fitted on Fx and Fy; Mz is reported, not fitted (it is "
+        "fitted only when no force was recorded): the effects change it only through the "
+        "force model, and the .tir temperature terms have no aligning-moment term.",
         "",
         "## Wheels",
         "",
