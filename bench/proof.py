@@ -13,10 +13,11 @@ those terms zeroed while the rig keeps the physics; the copies are written with 
 Note: the rig's physics is not the form the diagnosis fits. The rig heats a three-node thermal
 model (tread surface, carcass, gas) with a grip window, its gas pressure follows the gas law,
 its speed law is Savkoor's, its wear grows faster on a hot tread, its belt friction steps at a
-pause; the diagnosis fits one thermal state with the TTX/TTY polynomials of the .tir
-temperature extension (plus a slow node), the .tir pressure terms, a friction table in ln Vs,
-a trend in frictional work or time or a step at a fitted time, and so on. A good score
-therefore means the diagnosis names and models physics it was not written to match exactly.
+belt stop between two runs; the diagnosis fits one thermal state with the TTX/TTY polynomials
+of the .tir temperature extension (plus a slow node), the .tir pressure terms, a friction table
+in ln Vs, a trend in frictional work or time or a step at a fitted time, and so on. A good
+score therefore means the diagnosis names and models physics it was not written to match
+exactly.
 
 Scoring (printed, and written as proof.json / proof.md into the output dir):
 
@@ -448,17 +449,16 @@ def print_table(outcomes: list[Outcome]) -> None:
 PHYSICS_NOTE = (
     "The rig's physics differs from the forms the diagnosis fits: the rig heats a three-node "
     "thermal model (tread surface, carcass, gas) with a grip window, has Savkoor's speed law, "
-    "wear that grows faster on a hot tread and a friction step at a pause; the diagnosis fits "
-    "one thermal state with the .tir TTX/TTY polynomials (plus a slow node), the .tir pressure "
-    "terms, a friction table in ln Vs, a trend or a step at a fitted time. Truth files and "
-    "the noise-free twins were moved out of the bags' folder before each diagnosis, which saw "
-    "only the bag and the .tir file; the twin is read after the diagnosis is complete. "
-    "Raw: held-out RMSE against the measured forces (on the nulls ~46 N: sensor noise on "
-    "forces and on slip/load). Floor: the raw RMSE the true physics itself scores on the same "
-    "held-out samples (force noise from the twin's true forces, input noise through the "
-    "fitted model); where it exceeds half the before, no model halves the raw measure. "
-    "Clean: the same fitted models replayed on the twin's true inputs, against its true "
-    "forces (model error)."
+    "wear that grows faster on a hot tread and a friction step at a belt stop; the diagnosis "
+    "fits one thermal state with the .tir TTX/TTY polynomials (plus a slow node), the .tir "
+    "pressure terms, a friction table in ln Vs, a trend or a step at a fitted time. Truth files"
+    " and the noise-free twins were moved out of the bags' folder before each diagnosis, which "
+    "saw only the bag and the .tir file; the twin is read after the diagnosis is complete. Raw:"
+    " held-out RMSE against the measured forces (on the nulls ~46 N: sensor noise on forces and"
+    " on slip/load). Floor: the raw RMSE the true physics itself scores on the same held-out "
+    "samples (force noise from the twin's true forces, input noise through the fitted model); "
+    "where it exceeds half the before, no model halves the raw measure. Clean: the same fitted "
+    "models replayed on the twin's true inputs, against its true forces (model error)."
 )
 
 
@@ -560,6 +560,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="reuse the bags (and truth) of a temp dir kept by --keep")
     parser.add_argument("--only", nargs="*", default=None,
                         help="run only these case names, in this order")
+    parser.add_argument("--seeds", nargs="+", type=int, default=None, metavar="SEED",
+                        help="run every case once per seed given instead of its own seed "
+                             "(names get _s<seed>): a check beyond the fixed seeds")
     parser.add_argument("--rescore", nargs="+", type=Path, default=None, metavar="RUN_DIR",
                         help="no new runs: score the <case>.diagnosis.json files already in "
                              "these run dirs (the latest wins), e.g. to join interrupted runs")
@@ -574,6 +577,9 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"unknown case(s): {', '.join(sorted(unknown))}")
         by_name = {c.name: c for c in CASES}
         cases = [by_name[n] for n in dict.fromkeys(args.only)]  # in the order given
+    if args.seeds:
+        cases = [dataclasses.replace(c, seed=s, name=f"{c.name}_s{s}")
+                 for c in cases for s in dict.fromkeys(args.seeds)]
     base_tir = (args.tir or default_tir()).resolve()
     out = args.out / time.strftime("run-%Y%m%d-%H%M%S", time.gmtime())
     out.mkdir(parents=True, exist_ok=False)
