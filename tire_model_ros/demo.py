@@ -370,12 +370,10 @@ def step_truth(out: Path, wheels: dict, diag) -> None:
             continue
         t_rel = np.asarray(trace["t_s"], dtype=float)
         T_at = np.interp(t_rel, w.t - w.t[0], np.asarray(T_inf, dtype=float))
-        for node in ("T_surface", "T_bulk"):
-            if node in trace:
-                r = float(np.corrcoef(T_at, np.asarray(trace[node], dtype=float))[0, 1])
-                say("5", f"{prefix}: inferred temperature vs the rig's hidden {node}: "
-                         f"correlation r = {r:.2f} (the rig's two-node model with a grip window "
-                         "is not the diagnosis' one-node form; its scale is a convention)")
+        r = float(np.corrcoef(T_at, np.asarray(trace["T_surface"], dtype=float))[0, 1])
+        say("5", f"{prefix}: inferred tread temperature vs the rig's hidden tread surface: "
+                 f"correlation r = {r:.2f} (the rig's three-node model with a grip window is "
+                 "not the diagnosis' tread node on the TTX/TTY terms; its scale is a convention)")
 
 
 def main(argv: list[str] | None = None) -> int:
