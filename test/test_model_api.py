@@ -240,6 +240,26 @@ def test_eval_cli_round_trip(model, tmp_path, no_limits) -> None:
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
 
 
+def test_eval_cli_variants(model, tmp_path) -> None:
+    """--turn-slip (with a phit column) and --alpha-star reach TireModel.evaluate."""
+    src = tmp_path / "in.csv"
+    cols = _write_inputs(src, with_T=False)
+    phit = np.linspace(-0.3, 0.3, cols["Fz"].size)
+    lines = src.read_text().splitlines()
+    rows = [f"{line},{float(v)!r}" for line, v in zip(lines[1:], phit, strict=True)]
+    src.write_text("\n".join([lines[0] + ",phit", *rows]) + "\n")
+    for flags in (["--turn-slip"], ["--alpha-star"], ["--turn-slip", "--alpha-star"]):
+        dst = tmp_path / f"out{len(flags)}{flags[0]}.csv"
+        res = _run("--tir", str(TIR61), str(src), "-o", str(dst), *flags)
+        assert res.returncode == 0, res.stderr
+        out = _read_csv(dst)
+        ref = model.evaluate(cols["Fz"], cols["kappa"], cols["alpha"], cols["gamma"], cols["Vx"],
+                             cols["p"], phit=phit, turn_slip="--turn-slip" in flags,
+                             alpha_star="--alpha-star" in flags)  # fmt: skip
+        for name in ("Fx", "Fy", "Mx", "My", "Mz"):
+            np.testing.assert_array_equal(out[name], getattr(ref, name), err_msg=name)
+
+
 def test_eval_cli_refuses_overwrite_and_bad_rows(tmp_path) -> None:
     src = tmp_path / "in.csv"
     dst = tmp_path / "out.csv"

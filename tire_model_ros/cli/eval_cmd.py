@@ -2,7 +2,8 @@
 
 Input columns (header required, any order, extra columns ignored): ``Fz,kappa,alpha,gamma,Vx,p``
 and optionally ``phit``, ``T`` (SI units, radians, p gauge [Pa], T [degC]; a missing ``T``
-column means NOMTEMP). The output holds the input columns plus ``Fx,Fy,Mx,My,Mz``.
+column means NOMTEMP; ``phit`` is used with ``--turn-slip``). The output holds the input columns
+plus ``Fx,Fy,Mx,My,Mz``.
 """
 
 from __future__ import annotations
@@ -31,6 +32,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-limits",
         action="store_true",
         help="plain equations: no input saturation, no low-speed model (MFeval useMode 211)",
+    )
+    parser.add_argument(
+        "--turn-slip",
+        action="store_true",
+        help="turn-slip model, with the phit column (MFeval useMode xx2)",
+    )
+    parser.add_argument(
+        "--alpha-star",
+        action="store_true",
+        help="alpha* = tan(alpha), gamma* = sin(gamma) in the equations (MFeval useMode x2x)",
     )
     parser.add_argument("--force", action="store_true", help="overwrite OUT.csv if it exists")
 
@@ -102,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
         phit=inputs.get("phit", 0.0),
         limits=not args.no_limits,
         full=False,
+        turn_slip=args.turn_slip,
+        alpha_star=args.alpha_star,
     )
     columns = dict(inputs)
     columns.update({name: getattr(out, name) for name in OUTPUTS})

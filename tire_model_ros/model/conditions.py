@@ -82,6 +82,8 @@ def operating_point(P, Fz, kappa, alpha, gamma, Vx, p, phit, limits):
     if limits:
         VXLOW = P[c.VXLOW]
         kappa = kappa * red_linear
+        if phit != 0.0:
+            phit = phit * vm.cos(alpha)  # empirical TNO choice mirrored by MFeval: input alpha
         phit = phit * red_linear
         if Vx < 0.0:
             phit = -phit
@@ -91,8 +93,6 @@ def operating_point(P, Fz, kappa, alpha, gamma, Vx, p, phit, limits):
             speed_sum = abs(Vx) + abs(vm.tan(alpha) * Vx)
             if speed_sum < VXLOW:
                 alpha = alpha * (speed_sum / VXLOW)
-        if phit != 0.0:
-            phit = phit * vm.cos(alpha)  # empirical TNO choice mirrored by MFeval
         alpha = clip(alpha, P[c.ALPMIN], P[c.ALPMAX])
         gamma = clip(gamma, P[c.CAMMIN], P[c.CAMMAX])
         Fz = clip(uFz, 0.0, P[c.FZMAX])

@@ -3,7 +3,10 @@
 Pacejka, Tire and Vehicle Dynamics, 3rd ed. (2012), §4.3.2, eqs. (4.E9)-(4.E67), with the
 TNO-tuned choices of MFeval 4.3.1 (A_mu = 1, LMUV = 0, eps = 1e-6, E factors clipped at 1 only
 when the limits are on) and the temperature extension of INTERFACE.md on Kxk, mux, Kya, muy.
-Turn slip is not modelled: every zeta factor is 1.
+The turn-slip factors (zeta1, zeta2, zeta3, SHyp of :mod:`.turnslip`) enter as arguments: the
+plain model passes 1 (0 for SHyp, ``turn_slip=False``), which folds away in the compiled loops.
+With the alpha* variant (4.E3, 4.E4) the callers pass alpha* = tan(alpha) sgn(Vx) and
+gamma* = sin(gamma) where MFeval uses them.
 """
 
 from __future__ import annotations
@@ -78,8 +81,8 @@ def Ex_curvature(P, dfz: float, kappax: float, limits: bool) -> float:
 
 
 @kernel
-def Fx0_pure(P, Fz, kappa, gamma, Vx, dfz, dpi, dT, red_smooth, limits):
-    """Pure longitudinal force Fx0 (4.E9)-(4.E18).
+def Fx0_pure(P, Fz, kappa, gamma, Vx, dfz, dpi, dT, red_smooth, limits, zeta1):
+    """Pure longitudinal force Fx0 (4.E9)-(4.E18); ``zeta1`` the turn-slip factor (4.105).
 
     Returns
     -------
@@ -87,11 +90,12 @@ def Fx0_pure(P, Fz, kappa, gamma, Vx, dfz, dpi, dT, red_smooth, limits):
     """
     Cx = P[c.PCX1] * P[c.LCX]  # (4.E11)
     mux = mux_peak(P, Fz, dfz, dpi, gamma, dT)
-    Dx = mux * Fz  # (4.E12), zeta1 = 1
+    Dx = mux * Fz * zeta1  # (4.E12)
     Kxk = Kxk_slip_stiffness(P, Fz, dfz, dpi, dT)
     Bx = Kxk / (Cx * Dx + EPS * sign1(Dx))  # (4.E16)
     SHx = (P[c.PHX1] + P[c.PHX2] * dfz) * P[c.LHX] * red_smooth  # (4.E17), low-speed reduced
-    SVx = Fz * (P[c.PVX1] + P[c.PVX2] * dfz) * P[c.LVX] * P[c.LMUX] * red_smooth  # (4.E18)
+    SVx = Fz * (P[c.PVX1] + P[c.PVX2] * dfz) * P[c.LVX] * P[c.LMUX] * zeta1  # (4.E18)
+    SVx = SVx * red_smooth
     kappax = kappa + SHx  # (4.E10)
     Ex = Ex_curvature(P, dfz, kappax, limits)
     Fx0 = magic_formula(Bx, Cx, Dx, Ex, kappax) + SVx  # (4.E9)
@@ -165,28 +169,37 @@ def Ey_curvature(P, dfz: float, gamma: float, alphay: float, limits: bool) -> fl
 
 
 @kernel
-def Fy0_pure(P, Fz, alpha, gamma, dfz, dpi, dT, red_smooth, limits, is_mf52):
+def Fy0_pure(P, Fz, alpha, gamma, dfz, dpi, dT, red_smooth, limits, is_mf52,
+             turn_slip, zeta2, zeta3, SHyp):  # fmt: skip
     """Pure lateral force Fy0 (4.E19)-(4.E30).
+
+    Turn slip: ``zeta2`` (4.77) scales Dy, SVy and SVyg, ``zeta3`` (4.79) Kya; with
+    ``turn_slip`` the camber term of SHy goes (zeta0 = 0, 4.83) and zeta4 = 1 + SHyp - SVyg/Kya'
+    (4.84) shifts it (MF 6.x; the MF 5.2 SHy keeps its form, as in MFeval).
 
     Returns
     -------
     (Fy0 [N], muy [-], Kya [N/rad], SHy [rad], SVy [N], By [1/rad], Cy [-])
     """
-    Kya = Kya_cornering_stiffness(P, Fz, dpi, gamma, dT)
-    SVyg = Fz * (P[c.PVY3] + P[c.PVY4] * dfz) * gamma * P[c.LKYC] * P[c.LMUY]  # (4.E28)
+    Kya = Kya_cornering_stiffness(P, Fz, dpi, gamma, dT) * zeta3
+    SVyg = Fz * (P[c.PVY3] + P[c.PVY4] * dfz) * gamma * P[c.LKYC] * P[c.LMUY] * zeta2  # (4.E28)
     Kyg0 = Kyg0_camber_stiffness(P, Fz, dfz, dpi, is_mf52)
     if is_mf52:
         SHy = (P[c.PHY1] + P[c.PHY2] * dfz) * P[c.LHY] + P[c.PHY3] * gamma * P[c.LKYC]
     else:
         Kya_prime = Kya + EPS * sign1(Kya)  # (4.E39)
-        SHy = (P[c.PHY1] + P[c.PHY2] * dfz) * P[c.LHY] + (Kyg0 * gamma - SVyg) / Kya_prime
-    SVy = Fz * (P[c.PVY1] + P[c.PVY2] * dfz) * P[c.LVY] * P[c.LMUY] + SVyg  # (4.E29)
+        if turn_slip:
+            zeta4 = 1.0 + SHyp - SVyg / Kya_prime  # (4.84)
+            SHy = (P[c.PHY1] + P[c.PHY2] * dfz) * P[c.LHY] + zeta4 - 1.0  # (4.E27), zeta0 = 0
+        else:
+            SHy = (P[c.PHY1] + P[c.PHY2] * dfz) * P[c.LHY] + (Kyg0 * gamma - SVyg) / Kya_prime
+    SVy = Fz * (P[c.PVY1] + P[c.PVY2] * dfz) * P[c.LVY] * P[c.LMUY] * zeta2 + SVyg  # (4.E29)
     SHy = SHy * red_smooth  # low-speed model
     SVy = SVy * red_smooth
     alphay = alpha + SHy  # (4.E20)
     Cy = P[c.PCY1] * P[c.LCY]  # (4.E21)
     muy = muy_peak(P, Fz, dfz, dpi, gamma, dT)
-    Dy = muy * Fz  # (4.E22), zeta2 = 1
+    Dy = muy * Fz * zeta2  # (4.E22)
     Ey = Ey_curvature(P, dfz, gamma, alphay, limits)
     By = Kya / (Cy * Dy + EPS * sign1(Dy))  # (4.E26)
     Fy0 = magic_formula(By, Cy, Dy, Ey, alphay) + SVy  # (4.E19)
@@ -231,12 +244,13 @@ def Gyk_weighting(P, kappa: float, alpha: float, gamma: float, dfz: float, limit
 
 
 @kernel
-def SVyk_shift(P, Fz, kappa, alpha, gamma, dfz, muy, red_smooth) -> float:
-    """Slip-ratio induced side force SVyk (4.E66), (4.E67) [N]."""
+def SVyk_shift(P, Fz, kappa, alpha, gamma, dfz, muy, red_smooth, zeta2) -> float:
+    """Slip-ratio induced side force SVyk (4.E66), (4.E67) [N]; ``zeta2`` of turn slip (4.77)."""
     DVyk = (
         muy
         * Fz
         * (P[c.RVY1] + P[c.RVY2] * dfz + P[c.RVY3] * gamma)
         * cos_atan(P[c.RVY4] * alpha)
-    )  # (4.E67), zeta2 = 1
+        * zeta2
+    )  # (4.E67)
     return DVyk * vm.sin(P[c.RVY5] * vm.atan(P[c.RVY6] * kappa)) * P[c.LVYKA] * red_smooth

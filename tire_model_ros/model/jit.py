@@ -36,7 +36,7 @@ import llvmlite.binding as llvm
 from numba import config, njit
 
 _HERE = Path(__file__).resolve().parent
-_SOURCES = ("jit.py", "coef.py", "conditions.py", "forces.py", "moments.py",
+_SOURCES = ("jit.py", "coef.py", "conditions.py", "forces.py", "moments.py", "turnslip.py",
             "vertical.py", "kernel.py", "vmath.py")  # fmt: skip
 
 

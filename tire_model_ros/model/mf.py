@@ -156,7 +156,8 @@ class TireModel:
         return shape, flat
 
     def evaluate(self, Fz, kappa, alpha, gamma=0.0, Vx=None, p=None, T=None, *, phit=0.0,
-                 omega=None, limits: bool = True, full: bool = True) -> MFOutput:  # fmt: skip
+                 omega=None, limits: bool = True, full: bool = True, turn_slip: bool = False,
+                 alpha_star: bool = False) -> MFOutput:  # fmt: skip
         """Evaluate the model; array inputs broadcast against each other.
 
         Parameters
@@ -165,18 +166,31 @@ class TireModel:
         kappa : longitudinal slip ratio [-]. alpha : slip angle [rad]. gamma : inclination [rad].
         Vx : forward speed [m/s] (None: LONGVL). p : inflation pressure, gauge [Pa]
             (None: INFLPRES, else NOMPRES). T : tyre temperature [degC] (None: NOMTEMP).
-        phit : turn slip [1/m]; accepted for the interface, turn slip is not modelled.
-        omega : wheel spin [rad/s] (None: from kappa and Vx); only changes Re/Rl/omega.
-        limits : True = MFeval useMode 111 (saturation to the file ranges, low-speed model,
-            E <= 1); False = plain equations (useMode 211).
+        phit : turn slip [1/m] (path curvature); used only with ``turn_slip``.
+        omega : wheel spin [rad/s] (None: from kappa and Vx); changes Re/Rl/omega, and the
+            camber spin of the turn-slip model.
+        limits : True = MFeval useMode 1xx (saturation to the file ranges, low-speed model,
+            E <= 1); False = plain equations (useMode 2xx).
         full : False skips the radii, stiffnesses and relaxation lengths (faster).
+        turn_slip : the turn-slip model of Pacejka 2012 §4.3.3 (spin phi from phit and the
+            camber, the zeta factors), useMode xx2; False (default) = xx1, every zeta = 1.
+            The wheel speed for the spin (and the reported omega, Re) is then iterated until Re
+            changes by at most 1e-9 m, MFeval's test on one sample, instead of two passes.
+            At phit = 0 MFeval's Mz, Mzr are 0/0 (NaN); the limit phit -> 0 is returned.
+        alpha_star : alpha* = tan(alpha) sgn(Vx), gamma* = sin(gamma) in the force and
+            aligning-torque equations (4.E3, 4.E4; Fy0 reversed for Vx < 0), useMode x2x;
+            False (default) = x1x, alpha and gamma as given (TNO MF-Tyre).
+
+        The MFeval useMode abc is ``limits = (a == 1)``, ``alpha_star = (b == 2)``,
+        ``turn_slip = (c == 2)``. The variants run a separate compiled loop (compiled on its
+        first use); the default path is unchanged by them.
         """
         shape, (Fz, kappa, alpha, gamma, Vx, p, T, phit, omega) = self._inputs(
             Fz, kappa, alpha, gamma, Vx, p, T, phit, omega
         )
         out = np.empty((N_OUT if full else N_FORCES, Fz.size))
         evaluate_batch(self._P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, bool(limits),
-                       out)  # fmt: skip
+                       out, turn_slip=bool(turn_slip), alpha_star=bool(alpha_star))  # fmt: skip
         values = {name: out[k].reshape(shape) for k, name in enumerate(OUT_NAMES[: out.shape[0]])}
         return MFOutput(**values)
 

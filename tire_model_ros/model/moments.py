@@ -3,7 +3,8 @@
 Mx: TNO MF-Tyre manual form with QSX1-QSX14 (Besselink et al. 2010, eq. 49).
 My: TNO form (Pacejka 2012 appendix 3, eq. A48) with Fz0 and (p/NOMPRES)^QSY8, and MFeval's
 empirical low-speed treatment. Mz: (4.E31)-(4.E49), (4.E71)-(4.E78) with the paper forms
-(A54)-(A60) that MFeval 4.3.1 uses (peak trail with gamma, not |gamma|; t scaled by LFZO).
+(A54)-(A60) that MFeval 4.3.1 uses (peak trail with gamma, not |gamma|; t scaled by LFZO), and
+the turn-slip factors zeta0, zeta2, zeta5-zeta8 of :mod:`.turnslip` (book §4.3.3).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from . import vmath as vm
 from .conditions import EPS, cos_atan, nominal_load, sign0, sign1
 from .forces import weighting
 from .jit import kernel
+from .turnslip import residual_cos
 
 
 @kernel
@@ -123,19 +125,23 @@ def Et_trail_curvature(P, dfz, gamma, Bt, Ct, alphat, limits) -> float:
 
 
 @kernel
-def Dr_residual_peak(P, Fz: float, dfz: float, dpi: float, gamma: float, alpha, Vx) -> float:
-    """Residual-torque peak factor Dr (4.E47) [N m]."""
+def Dr_residual_peak(P, Fz, dfz, dpi, gamma, alpha, Vx, zeta0, zeta2) -> float:
+    """Residual-torque peak factor Dr (4.E47) without its turn-slip term zeta8 - 1 [N m].
+
+    ``zeta0`` (4.83) multiplies the camber term, ``zeta2`` (4.77) the offset term.
+    """
     return (
         Fz
         * P[c.UNLOADED_RADIUS]
         * (
-            (P[c.QDZ6] + P[c.QDZ7] * dfz) * P[c.LRES]
+            (P[c.QDZ6] + P[c.QDZ7] * dfz) * P[c.LRES] * zeta2
             + (
                 (P[c.QDZ8] + P[c.QDZ9] * dfz) * (1.0 + P[c.PPZ2] * dpi)
                 + (P[c.QDZ10] + P[c.QDZ11] * dfz) * abs(gamma)
             )
             * gamma
             * P[c.LKZC]
+            * zeta0
         )
         * P[c.LMUY]
         * sign0(Vx)
@@ -153,13 +159,20 @@ def equivalent_slip_angle(alpha_x: float, Kxk: float, Kya_prime: float, kappa: f
 
 @kernel
 def Mz_aligning(
-    P, Fz_mz, dfz, dpi, kappa, alpha, gamma, Vx, cos_alpha_p, limits, is_mf52,
+    P, Fz_mz, dfz, dpi, kappa, alpha, gamma, gamma_s, Vx, cos_alpha_p, limits, is_mf52,
     Kxk, Kya, SHy, SVy, By, Cy, Fx, Fy, SVyk, Fy_prime, red_smooth,
+    turn_slip, zeta2, zeta5, zeta6, ratio7, Drphi,
 ):  # fmt: skip
     """Combined-slip aligning torque Mz (4.E71)-(4.E78), (A54)-(A60).
 
     ``Fy_prime`` is Gyk Fy0 evaluated at zero camber (4.E74); ``Fz_mz`` the load of the
-    aligning-torque equations (not below FZMIN with the limits on).
+    aligning-torque equations (not below FZMIN with the limits on). ``alpha`` is the slip angle
+    of the equations (alpha* in that variant), ``gamma_s`` the camber where MFeval uses gamma*
+    (SHt, Et, Dr), ``gamma`` where it keeps gamma (Bt, Dt, s).
+
+    Turn slip (``turn_slip``): zeta5 (4.91) on Dt, zeta6 (4.102) on Br, zeta0 = 0 and zeta2 in
+    Dr, zeta8 - 1 = ``Drphi`` added to Dr, and Cr = zeta7 given by ``ratio7`` (see
+    :func:`.turnslip.zeta7_zeta8`); the plain model passes 1 for the factors.
 
     Returns
     -------
@@ -169,14 +182,17 @@ def Mz_aligning(
     Kya_prime = Kya + EPS * sign1(Kya)  # (4.E39)
     SHf = SHy + SVy / Kya_prime  # (4.E38)
     alphar = alpha + SHf  # (4.E37)
-    SHt = P[c.QHZ1] + P[c.QHZ2] * dfz + (P[c.QHZ3] + P[c.QHZ4] * dfz) * gamma  # (4.E35)
+    SHt = P[c.QHZ1] + P[c.QHZ2] * dfz + (P[c.QHZ3] + P[c.QHZ4] * dfz) * gamma_s  # (4.E35)
     alphat = alpha + SHt  # (4.E34)
     Bt = Bt_trail_stiffness(P, dfz, gamma)
     Ct = P[c.QCZ1]  # (4.E41)
-    Dt = Dt_trail_peak(P, Fz_mz, dfz, dpi, gamma)
-    Et = Et_trail_curvature(P, dfz, gamma, Bt, Ct, alphat, limits)
-    Br = P[c.QBZ9] * P[c.LKY] / P[c.LMUY] + P[c.QBZ10] * By * Cy  # (4.E45)
-    Dr = Dr_residual_peak(P, Fz_mz, dfz, dpi, gamma, alpha, Vx)
+    Dt = Dt_trail_peak(P, Fz_mz, dfz, dpi, gamma) * zeta5
+    Et = Et_trail_curvature(P, dfz, gamma_s, Bt, Ct, alphat, limits)
+    Br = (P[c.QBZ9] * P[c.LKY] / P[c.LMUY] + P[c.QBZ10] * By * Cy) * zeta6  # (4.E45)
+    zeta0 = 0.0 if turn_slip else 1.0  # (4.83)
+    Dr = Dr_residual_peak(P, Fz_mz, dfz, dpi, gamma_s, alpha, Vx, zeta0, zeta2)
+    if turn_slip:
+        Dr = Dr + Drphi  # (4.E47): + zeta8 - 1
     alphar_eq = equivalent_slip_angle(alphar, Kxk, Kya_prime, kappa)  # (A54)
     alphat_eq = equivalent_slip_angle(alphat, Kxk, Kya_prime, kappa)  # (A55)
     s = (
@@ -184,7 +200,8 @@ def Mz_aligning(
         * (P[c.SSZ1] + P[c.SSZ2] * (Fy / P[c.FNOMIN]) + (P[c.SSZ3] + P[c.SSZ4] * dfz) * gamma)
         * P[c.LS]
     )  # (A56)
-    Mzr = Dr * cos_atan(Br * alphar_eq)  # (4.E75), Cr = 1
+    # (4.E75): Cr = zeta7 with turn slip, else 1
+    Mzr = Dr * (residual_cos(ratio7, Br * alphar_eq) if turn_slip else cos_atan(Br * alphar_eq))
     t = Dt * weighting(Bt, Ct, Et, alphat_eq) * cos_alpha_p
     t = t * P[c.LFZO]  # (4.E73); the LFZO factor is TNO's (MFeval note)
     t = t * red_smooth

@@ -36,14 +36,20 @@ def Re_effective_radius(P, omega: float, Fz: float, dpi: float) -> float:
     )
 
 
+RE_TOL = 1e-9  # MFeval's stopping test on the change of Re [m]
+RE_MAX_PASSES = 20  # never reached by a finite input (4 passes at most on the oracle grids)
+
+
 @standalone
-def rolling_state(P, uFz, kappa_raw, Vx, dpi, omega_in):
+def rolling_state(P, uFz, kappa_raw, Vx, dpi, omega_in, converge=False):
     """Wheel speed and effective rolling radius.
 
     With ``omega_in`` given (finite) Re follows from it; otherwise omega = (1 + kappa) Vx / Re
-    (book eq. 2.5) and Re are updated twice from Re = 0.965 R0, exactly as MFeval 4.3.1 does
-    (it is not iterated to convergence; the Q_V1 speed term makes the fixed point differ
-    slightly at high speed).
+    (book eq. 2.5) and Re are updated from Re = 0.965 R0. By default twice, as MFeval 4.3.1 does
+    on most batches (it stops when the change of Re is below 1e-9 in *every* row of the batch,
+    usually after two passes; the Q_V1 speed term makes the fixed point differ slightly at high
+    speed). ``converge``: until the change of this sample's Re is at most 1e-9, which is
+    MFeval's test on a batch of one (the turn-slip path: the spin phi depends on omega).
 
     Returns
     -------
@@ -54,9 +60,18 @@ def rolling_state(P, uFz, kappa_raw, Vx, dpi, omega_in):
         return Re_effective_radius(P, omega, uFz, dpi), Romega_free_radius(P, omega), omega
     Re = P[c.UNLOADED_RADIUS] * 0.965
     omega = 0.0
-    for _ in range(2):
-        omega = (kappa_raw * Vx + Vx) / Re
-        Re = Re_effective_radius(P, omega, uFz, dpi)
+    if converge:
+        Re_old = P[c.UNLOADED_RADIUS]
+        for _ in range(RE_MAX_PASSES):
+            if not abs(Re_old - Re) > RE_TOL:
+                break
+            Re_old = Re
+            omega = (kappa_raw * Vx + Vx) / Re
+            Re = Re_effective_radius(P, omega, uFz, dpi)
+    else:
+        for _ in range(2):
+            omega = (kappa_raw * Vx + Vx) / Re
+            Re = Re_effective_radius(P, omega, uFz, dpi)
     return Re, Romega_free_radius(P, omega), omega
 
 
