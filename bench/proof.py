@@ -625,9 +625,11 @@ def main(argv: list[str] | None = None) -> int:
              and not tot["errors"])
     met = {m: named and tot[k] == tot["effect_recordings"]
            for m, k in (("raw", "heldout_halved"), ("clean", "heldout_halved_clean"))}
+    met["raw, where the floor allows halving,"] = (
+        named and tot["heldout_halved_where_attainable"] == tot["attainable"])
     for m, ok in met.items():
         print(f"proof: targets on the {m} measure " + ("MET" if ok else "NOT met"))
-    return 0 if met["raw"] else 1
+    return 0 if met["raw"] else 1  # the target as written: halved on every recording
 
 
 if __name__ == "__main__":
