@@ -22,8 +22,9 @@ Two code-generation settings, for every numba function the process compiles afte
 
 numba keys a cached function on its own source file only: a kernel in ``kernel.py`` compiled
 with an older ``forces.py`` would be loaded stale after ``forces.py`` changed. The guard below
-hashes every kernel source of this package and drops the package's numba cache when the hash
-differs from the one the cache was built with.
+hashes every kernel source of this package and drops the package's numba cache (in every
+directory numba may use for it, ``NUMBA_CACHE_DIR`` included) when the hash differs from the
+one the cache was built with.
 """
 
 from __future__ import annotations
@@ -50,26 +51,46 @@ def _sources_digest() -> str:
     return h.hexdigest()
 
 
+def _cache_dirs() -> list[Path]:
+    """Where numba may keep this package's cache, in its own order of choice.
+
+    ``NUMBA_CACHE_DIR`` when set, else ``__pycache__`` beside the sources, else (a read-only
+    install) the user-wide cache; numba's own subpath rule names the directory in the first
+    and last (its internal API: when it moves, only the in-tree directory is guarded).
+    """
+    in_tree = _HERE / "__pycache__"
+    try:
+        from numba.core.caching import _CacheLocator
+        from numba.misc.appdirs import AppDirs
+
+        sub = _CacheLocator.get_suitable_cache_subpath(str(_HERE / "kernel.py"))
+        user_wide = Path(AppDirs("numba", appauthor=False).user_cache_dir) / sub
+    except (ImportError, AttributeError, TypeError):
+        return [in_tree]
+    first = [Path(config.CACHE_DIR) / sub] if config.CACHE_DIR else []
+    return [*first, in_tree, *([user_wide] if user_wide.is_dir() else [])]
+
+
 def _guard_cache() -> None:
-    """Remove this package's numba cache files if they were built from other sources."""
-    cache = _HERE / "__pycache__"
-    stamp = cache / "mf_kernels.sha256"
+    """Remove this package's numba cache files where they were built from other sources."""
     digest = _sources_digest()
-    try:
-        if stamp.read_text() == digest:
-            return
-    except OSError:
-        pass
-    try:
-        cache.mkdir(exist_ok=True)
-        for f in cache.iterdir():
-            if f.suffix in (".nbi", ".nbc"):
-                f.unlink(missing_ok=True)
-        tmp = stamp.with_name(f"{stamp.name}.{os.getpid()}.tmp")
-        tmp.write_text(digest)
-        os.replace(tmp, stamp)
-    except OSError:
-        pass  # read-only install: numba then compiles in memory or uses its own cache dir
+    for cache in _cache_dirs():
+        stamp = cache / "mf_kernels.sha256"
+        try:
+            if stamp.read_text() == digest:
+                continue
+        except OSError:
+            pass
+        try:
+            cache.mkdir(parents=True, exist_ok=True)
+            for f in cache.iterdir():
+                if f.suffix in (".nbi", ".nbc"):
+                    f.unlink(missing_ok=True)
+            tmp = stamp.with_name(f"{stamp.name}.{os.getpid()}.tmp")
+            tmp.write_text(digest)
+            os.replace(tmp, stamp)
+        except OSError:
+            pass  # not writable: numba does not use it either
 
 
 _guard_cache()
