@@ -128,8 +128,8 @@ def run(args) -> int:
                 print(f"  held-out {ch} RMSE against {args.reference}: {a:.1f} -> {b:.1f}")
         for ch, v in ref["heldout_floor"].items():
             if v["rmse"] is not None:
-                print(f"  held-out {ch} RMSE of its forces against the recording's: "
-                      f"{v['rmse']:.1f}")
+                print(f"  held-out {ch} RMSE floor (the true physics on this recording's "
+                      f"noise): {v['rmse']:.1f}")
         write_json_atomic(ref, args.reference_json, overwrite=args.force)
         print(f"wrote {args.reference_json}")
     if args.report:

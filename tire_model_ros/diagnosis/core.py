@@ -164,9 +164,10 @@ class Diagnosis:
                 preds[w.prefix].update({f"{kind}_{ch}": out[ch] for ch in w.meas})
         fit = _fit_json(ref, ws, preds)
         out = {k: fit[k] for k in ("heldout_baseline", "heldout_improved")}
-        comps, x = self.models["improved"]
-        on_recorded = [cd.predict(comps, x, ctx, wi, np.arange(w.n)) for wi, w in enumerate(ws)]
-        on_true = [{ch: preds[w.prefix][f"improved_{ch}"] for ch in w.meas} for w in ws]
+        on_recorded, on_true = (
+            [{ch: p[w.prefix][f"improved_{ch}"] for ch in w.meas} for w in ws]
+            for p in (self.predictions, preds)
+        )
         out["heldout_floor"] = _floor(ctx.wheels, ws, on_recorded, on_true)
         return out
 
