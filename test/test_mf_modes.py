@@ -137,6 +137,19 @@ def test_turn_slip_broadcasts_and_isolates_nan(model) -> None:
     assert grid.Mz[1, 2] == one.Mz and grid.Fy[1, 2] == one.Fy
 
 
+@pytest.mark.parametrize("turn_slip,alpha_star", [(True, False), (False, True), (True, True)])
+def test_unloaded_wheel_gives_zero_in_every_mode(model, turn_slip, alpha_star) -> None:
+    """Fz <= 0 gives zero forces and moments, as without the variants (turn slip's zeta7 is
+    0/0 there)."""
+    Fz, kappa, alpha = np.array([0.0, -5.0]), np.array([0.0, 0.1]), np.array([0.1, 0.0])
+    plain = model.evaluate(Fz, kappa, alpha, 0.02, phit=0.2)
+    out = model.evaluate(Fz, kappa, alpha, 0.02, phit=0.2, turn_slip=turn_slip,
+                         alpha_star=alpha_star)  # fmt: skip
+    for name in FORCES:
+        np.testing.assert_array_equal(getattr(out, name), getattr(plain, name))
+        assert np.all(np.isfinite(getattr(out, name)))
+
+
 def test_turn_slip_coefficients_come_from_the_tir_file(model, tmp_path) -> None:
     text = TIR61.read_text()
     assert "PDYP1                    =    0.4" in text

@@ -131,7 +131,8 @@ def zeta7_zeta8(P, Fz, dfz, gamma, muy, Gyk, phit, eps_gamma) -> tuple[float, fl
     with Kzgr0 (4.99); Drphi = DDrp sin(CDrp atan(BDrp R0 phit)); Mzphi90 (4.103);
     zeta7 = (2/pi) acos(Mzphi90 / |Drphi|), zeta8 = 1 + Drphi (MFeval: "from the manual").
     At phit = 0 the ratio is 0/0 in MFeval (NaN Mz, Mzr); the limit phit -> 0 is used instead,
-    (2/pi) QCRP2 Gyk Mzphi_inf |1 - eps_gamma| / |Kzgr0|.
+    (2/pi) QCRP2 Gyk Mzphi_inf |1 - eps_gamma| / |Kzgr0|. At Fz <= 0 (0/0 too): ratio 0
+    (zeta7 = 1) and Drphi 0.
 
     Returns
     -------
@@ -139,6 +140,8 @@ def zeta7_zeta8(P, Fz, dfz, gamma, muy, Gyk, phit, eps_gamma) -> tuple[float, fl
         ``ratio`` = cos(pi zeta7 / 2), the argument of acos, which may exceed 1 (see
         :func:`residual_cos`); zeta8 - 1 = Drphi.
     """
+    if Fz <= 0.0:  # no load, no moment: 1 and 0 (MFeval: 0/0) keep Mz at 0 as without turn slip
+        return 0.0, 0.0
     R0 = P[c.UNLOADED_RADIUS]
     Minf = Mzphi_inf(P, Fz, muy)
     CDrp = P[c.QDRP1]  # (4.96)
