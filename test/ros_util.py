@@ -2,6 +2,8 @@
 
 - ``claim_domain_id()``: a ROS_DOMAIN_ID (1..101) held by this process through a lock file, so
   concurrent test runs on the machine never share a domain.
+- ``exited_cleanly(rc, log)``: status 0, or the teardown deadline's status 1 (Fast DDS hung
+  after the work was done), which passes with a warning.
 - ``ros_env(domain_id)``: environment for a child process: that domain, discovery on
   LOCALHOST only, unbuffered output.
 - ``NodeProcess``: starts a command (e.g. the node) with such an env, logs to a file,
@@ -15,16 +17,19 @@ from __future__ import annotations
 
 import fcntl
 import os
+import re
 import signal
 import subprocess
 import sys
 import tempfile
 import threading
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 LOCK_DIR = Path(tempfile.gettempdir()) / "tire_model_ros_domain_locks"
+DEADLINE_DUMP = re.compile(r"^Timeout \(\d+:\d\d:\d\d(\.\d+)?\)!$", re.MULTILINE)
 _claimed: dict[str, object] = {}
 
 
@@ -47,6 +52,17 @@ def claim_domain_id() -> int:
     raise RuntimeError("no free ROS_DOMAIN_ID in 1..101")
 
 
+def exited_cleanly(rc: int | None, log: str) -> bool:
+    """Exit status 0, or 1 from ``tire_model_ros.teardown.deadline``: the process had done its
+    work and Fast DDS hung in teardown (an upstream deadlock, not ours). That case passes with
+    a warning carrying the stacks, so it stays visible without failing the test."""
+    if rc == 1 and DEADLINE_DUMP.search(log):
+        warnings.warn(f"teardown deadline hit (Fast DDS hung after the work):\n{log[-4000:]}",
+                      stacklevel=2)  # fmt: skip
+        return True
+    return rc == 0
+
+
 def ros_env(domain_id: int | None = None, extra: dict[str, str] | None = None) -> dict[str, str]:
     """Environment for a ROS child process: own domain, localhost discovery only."""
     env = dict(os.environ)
@@ -55,6 +71,7 @@ def ros_env(domain_id: int | None = None, extra: dict[str, str] | None = None) -
     env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated; conflicts with the range setting
     env.pop("ROS_STATIC_PEERS", None)
     env["PYTHONUNBUFFERED"] = "1"
+    env["PYTHONFAULTHANDLER"] = "1"  # a hung child killed with SIGABRT logs its stacks
     if extra:
         env.update(extra)
     return env
@@ -120,7 +137,7 @@ class NodeProcess:
 
         wait_for(seen, timeout, f"{text!r} in the log of {self.cmd[0]}")
 
-    def stop(self, sig: int = signal.SIGTERM, timeout: float = 10.0) -> tuple[int, str]:
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = 20.0) -> tuple[int, str]:
         """Send ``sig``, wait up to ``timeout`` s (then SIGKILL); returns (exit code, log)."""
         if self.proc.poll() is None:
             self.proc.send_signal(sig)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ros_util import NodeProcess, RosClient, ros_env, wait_for
+from ros_util import NodeProcess, RosClient, exited_cleanly, ros_env, wait_for
 
 from tire_model_ros.model import TireModel
 
@@ -129,4 +129,4 @@ def test_colcon_build_and_run_installed_node(tmp_path):
     finally:
         rc, log = proc.stop(signal.SIGTERM)
         client.close()
-    assert rc == 0 and "Traceback" not in log, log
+    assert exited_cleanly(rc, log) and "Traceback" not in log, log

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ros_util import exited_cleanly
 from series_util import NS, assert_same, random_wheel
 
 from tire_model_ros.recording.bag import RecordingError, read_raw, read_recording, write_recording
@@ -89,11 +90,15 @@ def finish(proc: subprocess.Popen, log: Path, timeout: float = 30) -> str:
     try:
         rc = proc.wait(timeout=timeout)
     except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
+        proc.send_signal(signal.SIGABRT)  # PYTHONFAULTHANDLER: the log gets every thread's stack
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
         raise AssertionError(f"timed out:\n{log.read_text()}") from None
     out = log.read_text()
-    assert rc == 0, out
+    assert exited_cleanly(rc, out), out
     return out
 
 

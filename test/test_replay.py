@@ -58,12 +58,12 @@ def test_node_on_played_recording_reproduces_eval(tmp_path):
         ros_util.wait_for(lambda: "recording" in recorder.log(), 60, "the recorder to start")
         play = subprocess.run(cli("play", str(tmp_path / "run"), "--rate", "4", "--wait", "20"),
                               env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
-        assert play.returncode == 0, play.stderr
+        assert ros_util.exited_cleanly(play.returncode, play.stderr), play.stderr
         recorder.proc.wait(timeout=60)
     finally:
         node.stop()
         rc, log = recorder.stop()
-    assert rc == 0, log  # the recorder stopped by itself after --count messages
+    assert ros_util.exited_cleanly(rc, log), log  # it stopped by itself after --count messages
     ch = decode_topic(read_raw(tmp_path / "forces"), f"{PREFIX}/forces")
     t_ns = rec.meta["t_ns"]
     assert np.array_equal(ch.stamp_ns, t_ns), "one forces message per slip, with its stamp"

@@ -203,8 +203,9 @@ def ros_env() -> dict[str, str]:
     return env
 
 
-def _stop(proc: subprocess.Popen, timeout: float = 10.0) -> None:
-    """SIGINT (clean shutdown, a recorder closes its bag), then SIGKILL if it hangs."""
+def _stop(proc: subprocess.Popen, timeout: float = 20.0) -> None:
+    """SIGINT (clean shutdown, a recorder closes its bag), then SIGKILL if it hangs (after
+    the teardown deadline, so a Fast DDS hang leaves its stacks in the log)."""
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
         try:

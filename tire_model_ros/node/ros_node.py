@@ -82,6 +82,7 @@ from tire_model_ros.model.states import Effects, EffectState
 from tire_model_ros.node import cdr_fast, realtime
 from tire_model_ros.node import params as pn
 from tire_model_ros.node.wheel import Nominal, Throttle, WheelState
+from tire_model_ros.teardown import deadline
 
 NODE_NAME = "tire_model_node"
 #: Input topic -> (type, index of its float64 after the header, field for the slow path).
@@ -628,7 +629,8 @@ def main(args: list[str] | None = None) -> int:
         print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
         code = 1
     finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        with deadline():
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
     return code

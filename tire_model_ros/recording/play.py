@@ -17,6 +17,7 @@ import numpy as np
 from tire_model_ros.recording import cdr
 from tire_model_ros.recording.bag import CHANNEL_TYPES, OPTIONAL, RawBag, RecordingError, read_raw
 from tire_model_ros.recording.ros_types import msg_class
+from tire_model_ros.teardown import deadline as teardown_deadline
 
 INPUTS = ("load", *OPTIONAL, "slip")  # slip last: at equal stamps the inputs come first
 _NS = 1_000_000_000
@@ -145,10 +146,10 @@ def play(
             node.create_publisher(msg_class(mt), t, qos)
             for t, mt in zip(sched.topics, sched.msgtypes, strict=True)
         ]
-        deadline = time.monotonic() + wait_subscribers_s
+        wait_until = time.monotonic() + wait_subscribers_s
         while (
             any(p.get_subscription_count() == 0 for p in pubs)
-            and time.monotonic() < deadline
+            and time.monotonic() < wait_until
             and not should_stop()
         ):
             time.sleep(0.01)
@@ -176,6 +177,7 @@ def play(
             p.wait_for_all_acked(Duration(seconds=5.0))
         return sent
     finally:
-        node.destroy_node()
-        if own_context:
-            rclpy.try_shutdown()
+        with teardown_deadline():  # every message acknowledged (or the wait timed out) by now
+            node.destroy_node()
+            if own_context:
+                rclpy.try_shutdown()

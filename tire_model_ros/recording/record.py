@@ -18,6 +18,7 @@ import numpy as np
 from tire_model_ros.recording import cdr
 from tire_model_ros.recording.bag import CHANNEL_TYPES, BagWriter
 from tire_model_ros.recording.ros_types import msg_class
+from tire_model_ros.teardown import deadline
 
 
 def resolve_topics(topics: Sequence[str] = (), wheels: Sequence[str] = ()) -> dict[str, str]:
@@ -129,8 +130,9 @@ def record(
             writer.abort()
         raise
     finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        with deadline():  # the bag is closed by now
+            executor.shutdown()
+            node.destroy_node()
+            rclpy.try_shutdown(context=context)
         for s, handler in old.items():
             signal.signal(s, handler)

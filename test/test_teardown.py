@@ -1,0 +1,39 @@
+"""The teardown deadline (tire_model_ros.teardown) ends a process stuck in C code holding the
+GIL, as Fast DDS can be in teardown, and does nothing to a block that finishes in time."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+from ros_util import exited_cleanly
+
+STUCK = """
+import ctypes
+from tire_model_ros.teardown import deadline
+with deadline({seconds}):
+    ctypes.PyDLL(None).sleep({block})  # a C call that keeps the GIL, as a DDS deadlock would
+print("after the block")
+"""
+
+
+def run(seconds: float, block: int) -> tuple[subprocess.CompletedProcess, float]:
+    t0 = time.monotonic()
+    done = subprocess.run([sys.executable, "-c", STUCK.format(seconds=seconds, block=block)],
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    return done, time.monotonic() - t0
+
+
+def test_stuck_block_exits_1_with_stacks():
+    done, wall = run(0.5, 30)
+    assert done.returncode == 1 and wall < 20, (done, wall)
+    assert "Timeout (0:00:00.500000)!" in done.stderr and "line 5" in done.stderr, done.stderr
+    assert "after the block" not in done.stdout
+    assert exited_cleanly(done.returncode, done.stderr)  # what the ROS tests tolerate
+
+
+def test_block_in_time_is_left_alone():
+    done, _ = run(2.0, 0)
+    assert done.returncode == 0 and "after the block" in done.stdout, done
+    assert not exited_cleanly(1, "Traceback (most recent call last):\n")
