@@ -156,6 +156,8 @@ class Outcome:
     clean_before: float = math.nan  # the same against the noise-free twin (model error)
     clean_after: float = math.nan
     floor: float = math.nan  # raw held-out RMSE of the true physics on the recording [N]
+    mz_before: float = math.nan  # raw held-out Mz RMSE (reported, not selected on) [N m]
+    mz_after: float = math.nan
     seconds: float = math.nan
     error: str = ""
     rig_words: list[str] | None = None  # the words the rig's truth file expects
@@ -354,9 +356,16 @@ def table_rows(outcomes: list[Outcome]) -> list[list[str]]:
             *_pair(o.before, o.after, o.ratio), yes[o.halved],
             _floor_text(o),
             *_pair(o.clean_before, o.clean_after, o.clean_ratio), yes[o.clean_halved],
-            ok, ", ".join(o.extra) if o.case.truth and o.extra else "-", f"{o.seconds:.0f}",
+            _mz_text(o), ok, ", ".join(o.extra) if o.case.truth and o.extra else "-",
+            f"{o.seconds:.0f}",
         ])
     return rows
+
+
+def _mz_text(o: Outcome) -> str:
+    if not math.isfinite(o.mz_before):
+        return "n/a"
+    return f"{o.mz_before:.1f} → {o.mz_after:.1f}"
 
 
 def _floor_text(o: Outcome) -> str:
@@ -375,7 +384,7 @@ def _pair(before: float, after: float, ratio: float) -> list[str]:
 
 HEADER = ["recording", "truth", "named", "held-out RMSE [N] before → after", "ratio",
           "halved", "floor [N] (/ before)", "clean [N] before → after", "ratio", "halved",
-          "named right", "extra", "s"]
+          "Mz [N m] before → after", "named right", "extra", "s"]
 
 
 def totals(outcomes: list[Outcome]) -> dict:
@@ -396,6 +405,9 @@ def totals(outcomes: list[Outcome]) -> dict:
         "attainable": sum(bool(o.attainable) for o in present),
         "heldout_halved_where_attainable": sum(bool(o.halved) for o in present if o.attainable),
         "extra_effects_on_effect_recordings": sum(len(o.extra) for o in present),
+        "mz_recordings": sum(math.isfinite(o.mz_before) for o in present),
+        "mz_better": sum(o.mz_after < o.mz_before for o in present),
+        "mz_within_5pct": sum(o.mz_after <= 1.05 * o.mz_before for o in present),
         "errors": sum(bool(o.error) for o in outcomes),
         "truth_disagreements": sum(o.rig_words is not None
                                    and sorted(set(o.rig_words)) != sorted(o.case.truth)
@@ -432,7 +444,9 @@ def totals_text(tot: dict) -> str:
         f"{tot['heldout_halved_clean']}/{tot['effect_recordings']} on the clean measure "
         f"(model error against the noise-free twin) (target all). Extra effects named "
         f"beside the truth on recordings with an effect: "
-        f"{tot['extra_effects_on_effect_recordings']}. "
+        f"{tot['extra_effects_on_effect_recordings']}. Held-out Mz (reported, refitted on each "
+        f"model's forces, not selected on) lower on {tot['mz_better']}/{tot['mz_recordings']}, "
+        f"at most 5 % higher on {tot['mz_within_5pct']}/{tot['mz_recordings']}. "
         f"Errors: {tot['errors']}."
     )
 
@@ -471,6 +485,8 @@ def outcome_from_json(case: Case, result: dict, clean: dict | None = None) -> Ou
     fit = result.get("fit", {})
     o.before = heldout_rss(fit, "heldout_baseline")
     o.after = heldout_rss(fit, "heldout_improved")
+    o.mz_before, o.mz_after = (float(fit.get(b, {}).get("Mz", {}).get("rmse", math.nan))
+                               for b in ("heldout_baseline", "heldout_improved"))
     if clean is not None:
         o.clean_before = heldout_rss(clean, "heldout_baseline")
         o.clean_after = heldout_rss(clean, "heldout_improved")
@@ -533,6 +549,7 @@ def write_results(out: Path, outcomes: list[Outcome], tot: dict, *, partial: boo
              "clean_heldout_rmse_before": o.clean_before,
              "clean_heldout_rmse_after": o.clean_after, "clean_ratio": o.clean_ratio,
              "clean_halved": o.clean_halved, "heldout_rmse_floor": o.floor,
+             "heldout_mz_rmse_before": o.mz_before, "heldout_mz_rmse_after": o.mz_after,
              "attainable": o.attainable, "named_right": o.named_right,
              "concealed_right": o.concealed_right, "extra": o.extra, "halved": o.halved,
              "seconds": o.seconds,

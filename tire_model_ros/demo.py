@@ -148,11 +148,12 @@ def step_diagnose(bag: Path, tir: Path, out: Path):
         say("2", f"   where: {_short(e.where)}")
         say("2", f"   evidence: {_short(e.evidence)}")
     fit = diag.fit
-    for c in ("Fx", "Fy"):
+    for c, unit, digits in (("Fx", "N", 0), ("Fy", "N", 0), ("Mz", "N m", 1)):
         b = fit.get("heldout_baseline", {}).get(c, {}).get("rmse")
         a = fit.get("heldout_improved", {}).get(c, {}).get("rmse")
         if b is not None and a is not None:
-            say("2", f"held-out {c} RMSE {b:.0f} N -> {a:.0f} N ({100 * (1 - a / b):.0f} % less)")
+            say("2", f"held-out {c} RMSE {b:.{digits}f} {unit} -> {a:.{digits}f} {unit} "
+                     f"({100 * (1 - a / b):.0f} % less)")
     from tire_model_ros.cli.diagnose_cmd import effects_path, improved_tir
 
     improved = out / "improved.tir"

@@ -987,11 +987,14 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
     base_fit = sel.fit(base, ctx, rows_ab, x0[: base[0].n])
     xs = cd.split_x(comps, final.x)
     full = [np.arange(w.n) for w in ws]
+    # each model's aligning moment refitted on its own forces (the model a user gets)
+    base_m, xb_m = _with_mz(ctx, base, base_fit.x, rows_ab)
+    comps_m, x_m = _with_mz(ctx, comps, final.x, rows_ab)
 
     preds, inferred, resid = {}, {}, {}
     for wi, w in enumerate(ws):
-        pb = cd.predict(base, base_fit.x, ctx, wi, full[wi])
-        pi = cd.predict(comps, final.x, ctx, wi, full[wi])
+        pb = cd.predict(base_m, xb_m, ctx, wi, full[wi])
+        pi = cd.predict(comps_m, x_m, ctx, wi, full[wi])
         preds[w.prefix] = {}
         for ch in ctx.all_channels:
             if ch in w.meas:
@@ -1073,8 +1076,8 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
             )
         )
 
-    improved = _improved_model(ctx, comps, final.x)
-    baseline_model = ctx.model.with_params(_coefs(ctx, base, base_fit.x))
+    improved = _improved_model(ctx, comps_m, x_m)
+    baseline_model = ctx.model.with_params(_coefs(ctx, base_m, xb_m))
     return Diagnosis(
         effects=effects,
         fit=fitjson,
@@ -1091,8 +1094,38 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
             "summaries": summaries,
             "components": [c.label for c in comps],
         },
-        models={"ctx": ctx, "baseline": (base, base_fit.x), "improved": (comps, final.x)},
+        models={"ctx": ctx, "baseline": (base_m, xb_m), "improved": (comps_m, x_m)},
     )
+
+
+# The aligning moment's trail and residual-torque coefficients (MF 6.1 base and load terms,
+# as the fit's Mz0 stage) with their parameter scales; the camber terms where camber varies.
+MZ_COEFS = {"QBZ1": 1.0, "QCZ1": 0.1, "QDZ1": 0.01, "QEZ1": 0.1, "QHZ1": 1e-3, "QDZ6": 1e-3,
+            "QBZ10": 0.05, "QBZ2": 0.1, "QDZ2": 0.01, "QDZ7": 1e-3}  # fmt: skip
+MZ_CAMBER_COEFS = {"QDZ8": 0.1, "QDZ9": 0.01, "QHZ3": 0.01, "QHZ4": 0.01}
+
+
+def _with_mz(ctx, comps, x, rows):
+    """``comps`` and ``x`` plus the Mz coefficients refitted to the measured Mz on ``rows``,
+    the force parameters held.
+
+    Mz is left out of the selection (its trail and residual torque follow the forces, so it
+    would count a force effect twice), but a model whose forces changed needs its Mz
+    refitted on them: the Q*Z coefficients do not enter Fx or Fy, so the forces stay as fitted.
+    """
+    if "Mz" in ctx.channels or "Mz" not in ctx.all_channels:
+        return comps, x
+    coefs = dict(MZ_COEFS)
+    if any(np.ptp(w.inputs["gamma"]) > np.radians(0.5) for w in ctx.wheels):
+        coefs.update(MZ_CAMBER_COEFS)
+    mz = cd.CoefRefit(ctx, "aligning_moment", "Mz trail and residual torque",
+                      list(coefs), list(coefs.values()))  # fmt: skip
+    if not mz.n:
+        return comps, x
+    allc = [*comps, mz]
+    on_mz = dataclasses.replace(ctx, channels=("Mz",))
+    f = sel.fit(allc, on_mz, rows, np.concatenate([x, mz.x0]), max_nfev=30, held=x)
+    return allc, f.x
 
 
 def _named_parts(chosen):

@@ -211,9 +211,11 @@ def _markdown(
         "RMSE in N (N m for Mz); NRMSE = RMSE / (max − min of the measured channel). "
         "*Before* is the given .tir model, *after* the model with the effects above. "
         "Held-out figures are on whole sweeps the fit did not see. "
-        "The effects are chosen and fitted on Fx and Fy; Mz is reported, not fitted (it is "
-        "fitted only when no force was recorded): the effects change it only through the "
-        "force model, and the .tir temperature terms have no aligning-moment term.",
+        "The effects are chosen and fitted on Fx and Fy (on Mz only when no force was "
+        "recorded). Each model's trail and residual-torque coefficients (QBZ, QCZ, QDZ, "
+        "QEZ, QHZ) are then refitted to the measured Mz on the same training sweeps, its "
+        "forces held: the .tir temperature terms have no aligning-moment term, so the effects "
+        "reach Mz only through the forces.",
         "",
         "## Wheels",
         "",

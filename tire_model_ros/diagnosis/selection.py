@@ -92,19 +92,28 @@ def fit(
     rows: list[np.ndarray],
     x0: np.ndarray | None = None,
     max_nfev: int = 40,
+    held: np.ndarray | None = None,
 ) -> Fit:
-    """Bounded least squares of all components' parameters on ``rows``."""
+    """Bounded least squares of the components' parameters on ``rows``.
+
+    ``held``: values of the leading parameters, kept as they are (only the rest are fitted;
+    ``x0`` and the returned ``Fit.x`` are still the whole vector, ``Fit.jac`` the fitted part's).
+    """
     if x0 is None:
         x0 = np.concatenate([np.asarray(c.x0, float) for c in components])
     lo, hi = bounds_of(components)
     x0 = np.clip(np.asarray(x0, float), lo, hi)
-    if len(x0) == 0:
+    k = 0 if held is None else len(held)
+    if held is not None:
+        x0[:k] = held
+    if len(x0) == k:
         r = residuals(components, x0, ctx, rows)
         return Fit(components, x0, 0.5 * float(r @ r), len(r))
-    scale = np.concatenate([np.asarray(c.scale, float) for c in components])
+    scale = np.concatenate([np.asarray(c.scale, float) for c in components])[k:]
+    lo, hi, head = lo[k:], hi[k:], x0[:k]
 
-    def fun(x):
-        r = residuals(components, x, ctx, rows)
+    def fun(xt):
+        r = residuals(components, np.concatenate([head, xt]), ctx, rows)
         return np.where(np.isfinite(r), r, 1e3)
 
     def solve(x_start, nfev):
@@ -121,21 +130,23 @@ def fit(
             diff_step=1e-4,
         )
 
-    starts = [x0]
-    names = [n for c in components for n in c.pnames]
+    starts = [x0[k:]]
+    names = [n for c in components for n in c.pnames][k:]
     # Alternative starts of the newest component's non-convex parameter (the others start
     # from the current model's fit).
     for c in components[-1:]:
         for st in c.starts:
-            xs = x0.copy()
-            for k, v in st.items():
-                xs[names.index(k)] = v
+            xs = x0[k:].copy()
+            for name, v in st.items():
+                xs[names.index(name)] = v
             starts.append(np.clip(xs, lo, hi))
+    xt = starts[0]
     if len(starts) > 1:
         trial = [solve(xs, max(6, max_nfev // 6)) for xs in starts]
-        x0 = min(trial, key=lambda r: r.cost).x
-    res = solve(x0, max_nfev)
-    return Fit(components, res.x, float(res.cost), len(res.fun), res.jac, int(res.nfev))
+        xt = min(trial, key=lambda r: r.cost).x
+    res = solve(xt, max_nfev)
+    x = np.concatenate([head, res.x])
+    return Fit(components, x, float(res.cost), len(res.fun), res.jac, int(res.nfev))
 
 
 def score(
