@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 
+import pytest
 from ros_util import exited_cleanly
 
 STUCK = """
@@ -30,7 +31,8 @@ def test_stuck_block_exits_1_with_stacks():
     assert done.returncode == 1 and wall < 20, (done, wall)
     assert "Timeout (0:00:00.500000)!" in done.stderr and "line 5" in done.stderr, done.stderr
     assert "after the block" not in done.stdout
-    assert exited_cleanly(done.returncode, done.stderr)  # what the ROS tests tolerate
+    with pytest.warns(UserWarning, match="teardown deadline hit"):  # tolerated, not hidden
+        assert exited_cleanly(done.returncode, done.stderr)
 
 
 def test_block_in_time_is_left_alone():
