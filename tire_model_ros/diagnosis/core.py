@@ -989,7 +989,7 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
     full = [np.arange(w.n) for w in ws]
     # each model's aligning moment refitted on its own forces (the model a user gets)
     base_m, xb_m = _with_mz(ctx, base, base_fit.x, rows_ab)
-    comps_m, x_m = _with_mz(ctx, comps, final.x, rows_ab)
+    comps_m, x_m = _with_mz(ctx, comps, final.x, rows_ab, start=base_m[-1:], x_start=xb_m)
 
     preds, inferred, resid = {}, {}, {}
     for wi, w in enumerate(ws):
@@ -1102,16 +1102,21 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
 # as the fit's Mz0 stage) with their parameter scales; the camber terms where camber varies.
 MZ_COEFS = {"QBZ1": 1.0, "QCZ1": 0.1, "QDZ1": 0.01, "QEZ1": 0.1, "QHZ1": 1e-3, "QDZ6": 1e-3,
             "QBZ10": 0.05, "QBZ2": 0.1, "QDZ2": 0.01, "QDZ7": 1e-3}  # fmt: skip
-MZ_CAMBER_COEFS = {"QDZ8": 0.1, "QDZ9": 0.01, "QHZ3": 0.01, "QHZ4": 0.01}
+MZ_CAMBER_COEFS = {"QBZ4": 0.1, "QBZ5": 0.1, "QDZ3": 0.1, "QDZ4": 0.5, "QDZ8": 0.05,
+                   "QDZ9": 0.05, "QDZ10": 0.1, "QDZ11": 0.1, "QEZ5": 0.5, "QHZ3": 0.01,
+                   "QHZ4": 0.01}  # fmt: skip
 
 
-def _with_mz(ctx, comps, x, rows):
+def _with_mz(ctx, comps, x, rows, start=(), x_start=None):
     """``comps`` and ``x`` plus the Mz coefficients refitted to the measured Mz on ``rows``,
     the force parameters held.
 
     Mz is left out of the selection (its trail and residual torque follow the forces, so it
     would count a force effect twice), but a model whose forces changed needs its Mz
     refitted on them: the Q*Z coefficients do not enter Fx or Fy, so the forces stay as fitted.
+    ``start``: another model's Mz component (the last of its components, ``x_start`` their
+    parameters), whose fitted Q*Z values are tried as a second starting point: the trail's
+    shape (QBZ, QCZ, QEZ) is not convex.
     """
     if "Mz" in ctx.channels or "Mz" not in ctx.all_channels:
         return comps, x
@@ -1122,6 +1127,9 @@ def _with_mz(ctx, comps, x, rows):
                       list(coefs), list(coefs.values()))  # fmt: skip
     if not mz.n:
         return comps, x
+    for other in start:
+        if isinstance(other, cd.CoefRefit) and other.pnames == mz.pnames:
+            mz.starts.append(dict(zip(mz.pnames, x_start[-other.n :], strict=True)))
     allc = [*comps, mz]
     on_mz = dataclasses.replace(ctx, channels=("Mz",))
     f = sel.fit(allc, on_mz, rows, np.concatenate([x, mz.x0]), max_nfev=30, held=x)
