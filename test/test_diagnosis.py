@@ -6,6 +6,7 @@ a real bag written and read back, and the CLI in a subprocess.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -341,3 +342,14 @@ def test_rare_sweeps_are_stratified_over_all_folds():
     # Four pressures, one sweep of each kind at each: too few to hold one out.
     four = [r for r in rare[: 1 + 5 * 4]]
     assert 2 not in _rare_folds(four, np.random.default_rng(0)).values()
+
+
+def test_unmeasured_torque_leaves_the_mz_coefficients_alone(model):
+    """A wrench whose torque is not measured (zeros) is no Mz to refit the trail to."""
+    wheels, _ = _session(model, {"heating": True}, omit=["temperature"])
+    wheels = [dataclasses.replace(w, Mz=np.zeros_like(w.Mz)) for w in wheels]
+    diag = diagnose(wheels, model, seed=0)
+    assert diag.effects[0].name == "temperature"
+    assert any("Mz not refitted" in line for line in diag.details["log"])
+    for k in MZ_COEFS:
+        assert diag.improved_model.params[k] == model.params[k], k

@@ -988,8 +988,8 @@ def _finish(ctx, ws, wheels, base, cur_fits, chosen, rows_ab, rows_c, log, strid
     xs = cd.split_x(comps, final.x)
     full = [np.arange(w.n) for w in ws]
     # each model's aligning moment refitted on its own forces (the model a user gets)
-    base_m, xb_m = _with_mz(ctx, base, base_fit.x, rows_ab)
-    comps_m, x_m = _with_mz(ctx, comps, final.x, rows_ab, start=base_m[-1:], x_start=xb_m)
+    base_m, xb_m = _with_mz(ctx, base, base_fit.x, rows_ab, log)
+    comps_m, x_m = _with_mz(ctx, comps, final.x, rows_ab, log, start=base_m[-1:], x_start=xb_m)
 
     preds, inferred, resid = {}, {}, {}
     for wi, w in enumerate(ws):
@@ -1107,7 +1107,10 @@ MZ_CAMBER_COEFS = {"QBZ4": 0.1, "QBZ5": 0.1, "QDZ3": 0.1, "QDZ4": 0.5, "QDZ8": 0
                    "QHZ4": 0.01}  # fmt: skip
 
 
-def _with_mz(ctx, comps, x, rows, start=(), x_start=None):
+MZ_MIN_CORR = 0.5  # measured Mz must follow the model's this well to be refitted to
+
+
+def _with_mz(ctx, comps, x, rows, log, start=(), x_start=None):
     """``comps`` and ``x`` plus the Mz coefficients refitted to the measured Mz on ``rows``,
     the force parameters held.
 
@@ -1116,9 +1119,14 @@ def _with_mz(ctx, comps, x, rows, start=(), x_start=None):
     refitted on them: the Q*Z coefficients do not enter Fx or Fy, so the forces stay as fitted.
     ``start``: another model's Mz component (the last of its components, ``x_start`` their
     parameters), whose fitted Q*Z values are tried as a second starting point: the trail's
-    shape (QBZ, QCZ, QEZ) is not convex.
+    shape (QBZ, QCZ, QEZ) is not convex. A measured Mz that does not follow the model's (a
+    wrench whose torques are not measured: zeros or noise) is left alone, and so are the Q*Z.
     """
     if "Mz" in ctx.channels or "Mz" not in ctx.all_channels:
+        return comps, x
+    r = _mz_correlation(ctx, comps, x, rows)
+    if not r >= MZ_MIN_CORR:
+        log.append(f"Mz not refitted: the measured Mz does not follow the model's (r = {r:.2f})")
         return comps, x
     coefs = dict(MZ_COEFS)
     if any(np.ptp(w.inputs["gamma"]) > np.radians(0.5) for w in ctx.wheels):
@@ -1134,6 +1142,22 @@ def _with_mz(ctx, comps, x, rows, start=(), x_start=None):
     on_mz = dataclasses.replace(ctx, channels=("Mz",))
     f = sel.fit(allc, on_mz, rows, np.concatenate([x, mz.x0]), max_nfev=30, held=x)
     return allc, f.x
+
+
+def _mz_correlation(ctx, comps, x, rows) -> float:
+    """Correlation of the measured Mz with the model's on ``rows`` (wheels pooled)."""
+    meas, model = [], []
+    for wi, r in enumerate(rows):
+        w = ctx.wheels[wi]
+        if "Mz" in w.meas and len(r):
+            meas.append(w.meas["Mz"][r])
+            model.append(cd.predict(comps, x, ctx, wi, r)["Mz"])
+    if not meas:
+        return math.nan
+    a, b = np.concatenate(meas), np.concatenate(model)
+    if np.std(a) == 0 or np.std(b) == 0:
+        return 0.0
+    return float(np.corrcoef(a, b)[0, 1])
 
 
 def _named_parts(chosen):
