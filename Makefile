@@ -20,7 +20,8 @@ $(STAMP): requirements.lock setup.py setup.cfg package.xml
 	touch $(STAMP)
 
 test: venv
-	$(VENV)/bin/ruff check tire_model_ros test bench
+	$(VENV)/bin/ruff check tire_model_ros test bench realities
+	$(VENV)/bin/ruff format --check tire_model_ros test bench realities
 	$(PY) -m pytest -q test
 
 demo: venv
@@ -36,7 +37,8 @@ proof: venv
 	$(PY) bench/proof.py
 
 lint: venv
-	$(VENV)/bin/ruff check tire_model_ros test bench
+	$(VENV)/bin/ruff check tire_model_ros test bench realities
+	$(VENV)/bin/ruff format --check tire_model_ros test bench realities
 
 clean:
 	rm -rf $(VENV) build install log .pytest_cache

@@ -86,8 +86,11 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=7)
     ap.add_argument("-n", type=int, default=1_000_000)
     ap.add_argument("--stages", action="store_true", help="also time each stage loop")
-    ap.add_argument("--variants", action="store_true",
-                    help="also time the turn-slip and alpha* loops (compiled on first use)")
+    ap.add_argument(
+        "--variants",
+        action="store_true",
+        help="also time the turn-slip and alpha* loops (compiled on first use)",
+    )
     args = ap.parse_args()
 
     t0 = time.perf_counter()
@@ -124,12 +127,16 @@ def main() -> int:
         _stage_times(model, (Fz, kappa, alpha, gamma, Vx, p, T), args.runs)
     if args.variants:
         phit = rng.uniform(-0.3, 0.3, n)
-        for label, kw in (("plain", {}), ("turn_slip", {"turn_slip": True}),
-                          ("alpha_star", {"alpha_star": True})):
+        for label, kw in (
+            ("plain", {}),
+            ("turn_slip", {"turn_slip": True}),
+            ("alpha_star", {"alpha_star": True}),
+        ):
             model.evaluate(4000.0, 0.0, 0.0, full=False, **kw)  # compile or load first
             wall, cpu = _median_time(
-                lambda kw=kw: model.evaluate(Fz, kappa, alpha, gamma, Vx, p, T, phit=phit,
-                                             full=False, **kw),
+                lambda kw=kw: model.evaluate(
+                    Fz, kappa, alpha, gamma, Vx, p, T, phit=phit, full=False, **kw
+                ),
                 args.runs,
             )
             print(f"batch forces+moments, {label}: {n / cpu / 1e6:.2f} M/s CPU")

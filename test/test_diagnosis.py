@@ -206,7 +206,10 @@ def test_friction_step_is_placed_at_the_belt_stop(model):
     at = truth["wheels"][wheels[0].prefix]["hidden_summary"]["mu_step_at_s"]
     assert first.parameters["t_step_s"] == pytest.approx(at, abs=1.0)
     twin, _ = simulate_session(
-        model, "lateral_sweeps", effects={**effects, "noise": False}, seed=5,
+        model,
+        "lateral_sweeps",
+        effects={**effects, "noise": False},
+        seed=5,
         programme_options=opts,
     )
     ref = diag.score_reference(twin)
@@ -223,8 +226,11 @@ def test_wear_is_drift_not_a_tread_node_stretched_to_its_bound(model):
     the slow thermal node came within its margin of drift: its tread node ran to the bound of
     its time constant, which is no heating of seconds, so drift is named and nothing else."""
     wheels, _ = simulate_session(
-        model, "flat_trac", effects={"wear": {"loss_per_km": 0.08, "abrasion_per_K": 0.032}},
-        omit=["temperature"], seed=41,
+        model,
+        "flat_trac",
+        effects={"wear": {"loss_per_km": 0.08, "abrasion_per_K": 0.032}},
+        omit=["temperature"],
+        seed=41,
     )
     diag = diagnose(wheels, model, seed=0)
     assert [e.name for e in diag.effects] == ["drift"], diag.details["log"]
@@ -244,8 +250,10 @@ def test_offset_is_named_constant_and_sized(model):
     )
     assert abs(Fy_at_rest) == pytest.approx(0.03 * Fz, rel=0.2)
     carried = diag.node_effects().for_wheel(wheels[0].prefix).offsets["Fy"]
-    assert carried == (first.parameters["offset_Fy_0"],
-                       first.parameters.get("offsetperFz_Fy_0", 0.0))
+    assert carried == (
+        first.parameters["offset_Fy_0"],
+        first.parameters.get("offsetperFz_Fy_0", 0.0),
+    )
 
 
 def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):

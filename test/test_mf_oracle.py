@@ -112,5 +112,8 @@ def test_oracle_set_is_complete() -> None:
         pytest.skip(f"oracle folder {MFEVAL} missing")
     assert len(FILES) == 34, [f.name for f in FILES]
     variants = sorted(f.name for f in FILES if not f.name.endswith("11.csv.gz"))
-    assert variants == [f"{t}__{g}__mode{m}.csv.gz" for t in ("MF61", "MF62")
-                        for g, m in (("pure_lat", 221), ("turnslip", 112), ("turnslip", 212))]
+    assert variants == [
+        f"{t}__{g}__mode{m}.csv.gz"
+        for t in ("MF61", "MF62")
+        for g, m in (("pure_lat", 221), ("turnslip", 112), ("turnslip", 212))
+    ]

@@ -290,7 +290,6 @@ def test_eval_cli_refuses_overwrite_and_bad_rows(tmp_path) -> None:
     assert res.returncode == 1 and "gamma" in res.stderr and "Vx" in res.stderr
 
 
-
 def test_cache_guard_clears_a_stale_user_cache_dir(tmp_path) -> None:
     """With NUMBA_CACHE_DIR set, kernels cached from other sources are dropped at import (numba
     keys a cache on its own file only, not on the inlined equations of the other modules)."""
@@ -304,7 +303,13 @@ def test_cache_guard_clears_a_stale_user_cache_dir(tmp_path) -> None:
     (cache / "mf_kernels.sha256").write_text("0" * 64)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
     code = "import tire_model_ros.model.jit as j; print(j._sources_digest())"
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                         timeout=120, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
     assert not stale.exists()
     assert (cache / "mf_kernels.sha256").read_text() == out.stdout.strip()

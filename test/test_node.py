@@ -664,13 +664,30 @@ def test_effects_file_runs_hidden_states_live_and_bad_file_rejected(client, tmp_
     model (the tread heats). A bad file is rejected naming file and key; "" switches off."""
     from tire_model_ros.model.states import Effects, EffectState, Node, WheelEffects
 
-    fx = WheelEffects(T_amb_C=25.0, thermal=Node(4.0, 5e-3), bulk=Node(60.0, 2e-5),
-                      bulk_mu_loss=0.3, offsets={"Fy": (20.0, 100.0)})
+    fx = WheelEffects(
+        T_amb_C=25.0,
+        thermal=Node(4.0, 5e-3),
+        bulk=Node(60.0, 2e-5),
+        bulk_mu_loss=0.3,
+        offsets={"Fy": (20.0, 100.0)},
+    )
     good = tmp_path / "improved.effects.json"
     good.write_text(Effects({"/fx": fx}, "default.tir").to_json())
-    proc = start_node(["-r", "__node:=tire_fx", "-p", f"tir_file:={DEFAULT_TIR}",
-                       "-p", "wheels:=['/fx']", "-p", "timeout.load:=0.0",
-                       "-p", "timeout.velocity:=0.0"], client)
+    proc = start_node(
+        [
+            "-r",
+            "__node:=tire_fx",
+            "-p",
+            f"tir_file:={DEFAULT_TIR}",
+            "-p",
+            "wheels:=['/fx']",
+            "-p",
+            "timeout.load:=0.0",
+            "-p",
+            "timeout.velocity:=0.0",
+        ],
+        client,
+    )
     try:
         from diagnostic_msgs.msg import DiagnosticArray
 
@@ -688,14 +705,31 @@ def test_effects_file_runs_hidden_states_live_and_bad_file_rejected(client, tmp_
         got = wheel.results(stamps)
         st, want = EffectState(fx), []
         for (sec, ns), (kappa, alpha, gamma) in zip(stamps, slips, strict=True):
-            want.append(st.evaluate(model, sec + 1e-9 * ns, 5000.0, kappa, alpha, gamma, 15.0,
-                                    None, None, nom.p, nom.T, nom.Fz))
+            want.append(
+                st.evaluate(
+                    model,
+                    sec + 1e-9 * ns,
+                    5000.0,
+                    kappa,
+                    alpha,
+                    gamma,
+                    15.0,
+                    None,
+                    None,
+                    nom.p,
+                    nom.T,
+                    nom.Fz,
+                )
+            )
         np.testing.assert_allclose(got, np.array(want), rtol=1e-9, atol=1e-6)
         plain = expected(model, inputs, slips)
         assert st.temperature_C > 30.0 and np.max(np.abs(got[:, 1] - plain[:, 1])) > 100.0
         tread = f"{st.temperature_C:.2f}"  # reported on /diagnostics
-        wait_for(lambda: _diag_values(diags, "tire_fx: /fx", 0.0).get("effects.tread_C") == tread,
-                 10, "the hidden tread temperature on /diagnostics")
+        wait_for(
+            lambda: _diag_values(diags, "tire_fx: /fx", 0.0).get("effects.tread_C") == tread,
+            10,
+            "the hidden tread temperature on /diagnostics",
+        )
 
         bad = tmp_path / "bad.effects.json"
         bad.write_text(good.read_text().replace('"tau_s": 4.0', '"tau_s": -4.0'))

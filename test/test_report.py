@@ -20,8 +20,9 @@ def diagnosed():
     """A short lateral-sweep session, heating with no temperature topic, diagnosed for real."""
     tir = default_tir_path()
     assert tir, "config/default.tir must be found"
-    wheels, _truth = simulate_session(tir, "lateral_sweeps", effects={"heating": True},
-                                      omit=["temperature"], seed=5)
+    wheels, _truth = simulate_session(
+        tir, "lateral_sweeps", effects={"heating": True}, omit=["temperature"], seed=5
+    )
     diag = diagnose(wheels, TireModel.from_file(tir))
     return diag, wheels
 

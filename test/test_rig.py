@@ -64,7 +64,7 @@ def _loop_width(alpha, Fy, lo=0.1, hi=0.9):
     """Mean |Fy| difference between the two legs at the same alpha on 0 -> +A -> 0."""
     k = _first_peak(alpha)
     a_out, f_out = alpha[:k], Fy[:k]
-    a_back, f_back = alpha[k:2 * k][::-1], Fy[k:2 * k][::-1]
+    a_back, f_back = alpha[k : 2 * k][::-1], Fy[k : 2 * k][::-1]
     grid = np.linspace(lo, hi, 30) * abs(alpha[k]) * np.sign(alpha[k])
     order_o, order_b = np.argsort(a_out), np.argsort(a_back)
     fo = np.interp(grid, a_out[order_o], f_out[order_o])
@@ -84,8 +84,9 @@ def test_same_seed_same_series_and_other_seed_differs(model):
     assert json.dumps(ta, sort_keys=True) == json.dumps(tb, sort_keys=True)
     assert not np.array_equal(a[0].Fy, c[0].Fy)
     # the noise is realistic: forces scatter about 0.3 % FNOMIN around the noiseless ones
-    q, _ = simulate_session(model, "camber", seed=7, rate_hz=50,
-                            effects={"heating": True, "noise": False})
+    q, _ = simulate_session(
+        model, "camber", seed=7, rate_hz=50, effects={"heating": True, "noise": False}
+    )
     sd = np.std(a[0].Fy - q[0].Fy)
     assert 0.002 * 6752 < sd < 0.006 * 6752
 
@@ -198,8 +199,10 @@ def test_relaxation_loop_grows_with_sweep_rate_and_with_lower_speed(model):
     assert 0.6 * expect < half_width_near_0 < 1.2 * expect
     w0, _ = _sim(model, "lateral_sweeps", {})
     s0 = w0[0]
-    assert _loop_width(s0.alpha[sweeps["lateral rate=6deg/s"]],
-                       s0.Fy[sweeps["lateral rate=6deg/s"]]) < 1e-6
+    assert (
+        _loop_width(s0.alpha[sweeps["lateral rate=6deg/s"]], s0.Fy[sweeps["lateral rate=6deg/s"]])
+        < 1e-6
+    )
 
 
 def test_delay_cross_correlation_lag_equals_tau(model):
@@ -210,8 +213,9 @@ def test_delay_cross_correlation_lag_equals_tau(model):
     x = np.diff(o.Fy)
     y = np.diff(s.Fy)
     lags = np.arange(-20, 21)
-    cc = [np.dot(x[max(0, -k):len(x) - max(0, k)], y[max(0, k):len(y) - max(0, -k)])
-          for k in lags]
+    cc = [
+        np.dot(x[max(0, -k) : len(x) - max(0, k)], y[max(0, k) : len(y) - max(0, -k)]) for k in lags
+    ]
     assert lags[int(np.argmax(cc))] == round(tau * 100)
 
 
@@ -287,8 +291,9 @@ def test_wear_never_recovers(model):
 
 
 def test_belt_stop_halts_the_belt_and_carries_the_friction_step(model):
-    w, truth = _sim(model, "lateral_sweeps", {"mu_step": {"ratio": 0.9}},
-                    programme_options={"stop_s": 20.0})
+    w, truth = _sim(
+        model, "lateral_sweeps", {"mu_step": {"ratio": 0.9}}, programme_options={"stop_s": 20.0}
+    )
     segs = truth["wheels"][w[0].prefix]["segments"]
     stop = next(g for g in segs if g["label"] == "belt stop")
     assert stop["t1_s"] - stop["t0_s"] == pytest.approx(20.0, abs=0.02)
@@ -324,7 +329,7 @@ def test_track_four_wheels_with_load_transfer(model):
     # in a left turn (Fy > 0 on the front axle) the right wheel carries more load
     turning = (fl.Fy + fr.Fy) > 0.3 * model.params["FNOMIN"]
     assert turning.sum() > 50 and np.all(fr.Fz[turning] > fl.Fz[turning])
-    braking = (fl.kappa < -0.01)
+    braking = fl.kappa < -0.01
     assert braking.sum() > 50 and np.all(fl.Fx[braking] < 0)
 
 
@@ -335,9 +340,25 @@ def test_cli_writes_bag_and_truth_beside_it(tmp_path):
     from tire_model_ros.recording.bag import read_recording
 
     bag = tmp_path / "run"
-    args = ["simulate", "--tir", str(TIR61), "--programme", "camber:rate_scale=2", "-o", str(bag),
-            "--effect", "heating:T_opt_C=40", "--effect", "offset", "--omit",
-            "temperature,velocity", "--seed", "3", "--rate", "20"]
+    args = [
+        "simulate",
+        "--tir",
+        str(TIR61),
+        "--programme",
+        "camber:rate_scale=2",
+        "-o",
+        str(bag),
+        "--effect",
+        "heating:T_opt_C=40",
+        "--effect",
+        "offset",
+        "--omit",
+        "temperature,velocity",
+        "--seed",
+        "3",
+        "--rate",
+        "20",
+    ]
     assert cli_main(args) == 0
     tpath = truth_path(bag)
     assert tpath == tmp_path / "run.truth.json" and tpath.is_file()
@@ -350,16 +371,35 @@ def test_cli_writes_bag_and_truth_beside_it(tmp_path):
     s = rec["/rig/wheel"]
     assert s.T is None and s.Vx is None and s.p is not None and len(s) > 500
     # the bag holds what simulate_session returns (same seed -> same content)
-    wheels, _ = simulate_session(TIR61, "camber", effects={"heating": {"T_opt_C": 40},
-                                                           "offset": True},
-                                 omit=["temperature", "velocity"], seed=3, rate_hz=20,
-                                 programme_options={"rate_scale": 2})
+    wheels, _ = simulate_session(
+        TIR61,
+        "camber",
+        effects={"heating": {"T_opt_C": 40}, "offset": True},
+        omit=["temperature", "velocity"],
+        seed=3,
+        rate_hz=20,
+        programme_options={"rate_scale": 2},
+    )
     assert np.allclose(s.Fy, wheels[0].Fy) and np.allclose(s.alpha, wheels[0].alpha)
     # refuses to overwrite without --force, overwrites with it
     assert cli_main(args) == 1
     assert cli_main([*args, "--force"]) == 0
-    assert cli_main(["simulate", "--tir", str(TIR61), "--programme", "camber", "-o",
-                     str(tmp_path / "x"), "--effect", "heating:bogus=1"]) == 1
+    assert (
+        cli_main(
+            [
+                "simulate",
+                "--tir",
+                str(TIR61),
+                "--programme",
+                "camber",
+                "-o",
+                str(tmp_path / "x"),
+                "--effect",
+                "heating:bogus=1",
+            ]
+        )
+        == 1
+    )
     assert not (tmp_path / "x").exists()
 
 
@@ -387,8 +427,7 @@ def test_model_temperature_lets_the_files_terms_act(model):
     assert err_nom > 50.0 and err_sensor < 0.3 * err_nom  # the sensor lags the surface a bit
 
 
-@pytest.mark.parametrize("name", ["flat_trac_nominal", "flat_trac_heating_hidden",
-                                  "track_4wheels"])
+@pytest.mark.parametrize("name", ["flat_trac_nominal", "flat_trac_heating_hidden", "track_4wheels"])
 def test_sample_bags_read_with_truth_beside(name):
     from tire_model_ros.recording.bag import read_recording
 
@@ -405,8 +444,7 @@ def test_sample_bags_read_with_truth_beside(name):
 def test_effects_as_a_list_of_names_and_truth_words(model):
     _, truth = simulate_session(model, "camber", effects=["heating", "delay"], rate_hz=20)
     assert set(truth["effects"]) == {"noise", "heating", "delay"}
-    assert truth["effect_words"] == {"noise": None, "heating": "temperature",
-                                     "delay": "time_delay"}
+    assert truth["effect_words"] == {"noise": None, "heating": "temperature", "delay": "time_delay"}
     assert truth["effects"]["delay"] == {"tau_s": 0.02}
 
 
@@ -428,8 +466,10 @@ def test_transient_phase_lag_relaxation_vs_delay(model):
         s = w[0]
         o = _base(model, s)
         name = next(iter(eff))
-        out[name] = {x["label"]: lag_s(s, o, _idx(x, 100.0), x["freq_hz"])
-                     for x in _segments(truth, "steer_sine")}
+        out[name] = {
+            x["label"]: lag_s(s, o, _idx(x, 100.0), x["freq_hz"])
+            for x in _segments(truth, "steer_sine")
+        }
     d = out["delay"]
     assert all(abs(v - 0.03) < 0.003 for v in d.values())
     r = out["relaxation"]
@@ -447,8 +487,9 @@ def test_every_programme_with_every_effect_stays_finite(tir):
 
     m = TireModel.from_file(REF / tir)
     for prog in PROGRAMMES:
-        wheels, truth = simulate_session(m, prog, effects=list(EFFECTS), rate_hz=10,
-                                         programme_options={"laps": 1})
+        wheels, truth = simulate_session(
+            m, prog, effects=list(EFFECTS), rate_hz=10, programme_options={"laps": 1}
+        )
         for w in wheels:
             for ch in ("kappa", "alpha", "Fz", "p", "T", "Vx", "Fx", "Fy", "Mz"):
                 assert np.all(np.isfinite(getattr(w, ch))), (tir, prog, w.prefix, ch)

@@ -92,8 +92,9 @@ def out_dir(arg: Path | None) -> Path:
 def run(cmd: list[str], step: str, timeout: float, env: dict | None = None) -> str:
     """Run a command, echo it, fail with its stderr."""
     say(step, "$ " + " ".join(cmd))
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env,
-                          check=False)
+    proc = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=timeout, env=env, check=False
+    )
     if proc.returncode != 0:
         raise RuntimeError(f"{step}: command failed ({proc.returncode}):\n{proc.stderr.strip()}")
     return proc.stdout
@@ -105,9 +106,26 @@ def run(cmd: list[str], step: str, timeout: float, env: dict | None = None) -> s
 def step_record(tir: Path, out: Path) -> Path:
     say("1 record the session on the rig")
     bag = out / "session"
-    run([*tool("tire-model"), "simulate", "--tir", str(tir), "--programme", PROGRAMME,
-         "-o", str(bag), "--effect", "heating", "--omit", "temperature", "--seed", str(SEED)],
-        "1", 600)
+    run(
+        [
+            *tool("tire-model"),
+            "simulate",
+            "--tir",
+            str(tir),
+            "--programme",
+            PROGRAMME,
+            "-o",
+            str(bag),
+            "--effect",
+            "heating",
+            "--omit",
+            "temperature",
+            "--seed",
+            str(SEED),
+        ],
+        "1",
+        600,
+    )
     truth = Path(f"{bag}.truth.json")
     hidden = out / "truth" / truth.name
     if truth.is_file():  # keep the truth out of the diagnosis' sight, for the end of the story
@@ -117,10 +135,16 @@ def step_record(tir: Path, out: Path) -> Path:
 
     wheels = read_recording(bag)
     for prefix, w in wheels.items():
-        topics = [n for n, c in (("pressure", w.p), ("temperature", w.T), ("velocity", w.Vx))
-                  if c is not None]
-        say("1", f"{bag.name}: wheel {prefix}, {len(w)} samples over {w.t[-1] - w.t[0]:.0f} s; "
-                 f"optional topics recorded: {', '.join(topics) or 'none'} (no temperature)")
+        topics = [
+            n
+            for n, c in (("pressure", w.p), ("temperature", w.T), ("velocity", w.Vx))
+            if c is not None
+        ]
+        say(
+            "1",
+            f"{bag.name}: wheel {prefix}, {len(w)} samples over {w.t[-1] - w.t[0]:.0f} s; "
+            f"optional topics recorded: {', '.join(topics) or 'none'} (no temperature)",
+        )
     return bag
 
 
@@ -131,20 +155,27 @@ def step_diagnose(bag: Path, tir: Path, out: Path):
     from tire_model_ros.recording.bag import read_recording
 
     wheels = read_recording(bag)
-    say("2", f"diagnose(read_recording({bag.name}), TireModel.from_file({tir.name})) "
-             f"(what `tire-model diagnose {bag.name} --tir {tir.name}` runs)")
+    say(
+        "2",
+        f"diagnose(read_recording({bag.name}), TireModel.from_file({tir.name})) "
+        f"(what `tire-model diagnose {bag.name} --tir {tir.name}` runs)",
+    )
     t0 = time.monotonic()
     diag = diagnose(list(wheels.values()), TireModel.from_file(tir))
     say("2", f"done in {time.monotonic() - t0:.0f} s")
     from tire_model_ros.diagnosis.report import fmt_param
 
     for i, e in enumerate(diag.effects, 1):
-        params = ", ".join(fmt_param(k, float(v), e.uncertainty.get(k))
-                           for k, v in list(e.parameters.items())[:4])
+        params = ", ".join(
+            fmt_param(k, float(v), e.uncertainty.get(k)) for k, v in list(e.parameters.items())[:4]
+        )
         more = len(e.parameters) - 4
-        say("2", f"finding {i}: {e.name}{' (concealed)' if e.concealed else ''} in {e.channel}"
-                 + (f"; fitted {params}" if params else "")
-                 + (f" (+{more} more in the report)" if more > 0 else ""))
+        say(
+            "2",
+            f"finding {i}: {e.name}{' (concealed)' if e.concealed else ''} in {e.channel}"
+            + (f"; fitted {params}" if params else "")
+            + (f" (+{more} more in the report)" if more > 0 else ""),
+        )
         say("2", f"   where: {_short(e.where)}")
         say("2", f"   evidence: {_short(e.evidence)}")
     fit = diag.fit
@@ -152,8 +183,11 @@ def step_diagnose(bag: Path, tir: Path, out: Path):
         b = fit.get("heldout_baseline", {}).get(c, {}).get("rmse")
         a = fit.get("heldout_improved", {}).get(c, {}).get("rmse")
         if b is not None and a is not None:
-            say("2", f"held-out {c} RMSE {b:.{digits}f} {unit} -> {a:.{digits}f} {unit} "
-                     f"({100 * (1 - a / b):.0f} % less)")
+            say(
+                "2",
+                f"held-out {c} RMSE {b:.{digits}f} {unit} -> {a:.{digits}f} {unit} "
+                f"({100 * (1 - a / b):.0f} % less)",
+            )
     from tire_model_ros.cli.diagnose_cmd import effects_path, improved_tir
 
     improved = out / "improved.tir"
@@ -161,8 +195,11 @@ def step_diagnose(bag: Path, tir: Path, out: Path):
     effects = diag.node_effects(improved.name)
     effects_path(improved).write_text(effects.to_json())
     (out / "diagnosis.json").write_text(json.dumps(diag.to_json(), indent=2) + "\n")
-    say("2", f"wrote {improved}, {effects_path(improved).name} (hidden states for the node: "
-             f"{', '.join(_carried(effects)) or 'none'}) and {out / 'diagnosis.json'}")
+    say(
+        "2",
+        f"wrote {improved}, {effects_path(improved).name} (hidden states for the node: "
+        f"{', '.join(_carried(effects)) or 'none'}) and {out / 'diagnosis.json'}",
+    )
     return wheels, diag, improved
 
 
@@ -223,29 +260,49 @@ def step_node(wheels: dict, diag, tir: Path, improved: Path, out: Path) -> bool:
     bag, parts = replay_bag(wheels, out)
     n_msgs = sum(len(w) for w in parts.values())
     span = max(float(w.t[-1] - w.t[0]) for w in parts.values())
-    say("4", f"replay bag {bag.name}: the whole session ({span:.0f} s), every "
-             f"{REPLAY_EVERY}th slip sample, no temperature topic (as recorded)")
+    say(
+        "4",
+        f"replay bag {bag.name}: the whole session ({span:.0f} s), every "
+        f"{REPLAY_EVERY}th slip sample, no temperature topic (as recorded)",
+    )
     env = ros_env()
     say("4", f"ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}, ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST")
     prefixes = list(parts)
     logs = out / "logs"
     logs.mkdir(exist_ok=True)
-    node_cmd = [*tool("tire-model-node"), "--ros-args", "-p", f"tir_file:={improved}",
-                "-p", f"effects_file:={effects_path(improved)}",
-                "-p", f"wheels:={json.dumps(prefixes)}"]
+    node_cmd = [
+        *tool("tire-model-node"),
+        "--ros-args",
+        "-p",
+        f"tir_file:={improved}",
+        "-p",
+        f"effects_file:={effects_path(improved)}",
+        "-p",
+        f"wheels:={json.dumps(prefixes)}",
+    ]
     forces_bag = out / "node_forces"
-    rec_cmd = [*tool("tire-model"), "record", "-o", str(forces_bag), "--wheels", *prefixes,
-               "--count", str(n_msgs), "--duration", str(span / REPLAY_RATE + 60)]
-    play_cmd = [*tool("tire-model"), "play", str(bag), "--rate", str(REPLAY_RATE),
-                "--wait", "10"]
+    rec_cmd = [
+        *tool("tire-model"),
+        "record",
+        "-o",
+        str(forces_bag),
+        "--wheels",
+        *prefixes,
+        "--count",
+        str(n_msgs),
+        "--duration",
+        str(span / REPLAY_RATE + 60),
+    ]
+    play_cmd = [*tool("tire-model"), "play", str(bag), "--rate", str(REPLAY_RATE), "--wait", "10"]
     procs: list[subprocess.Popen] = []
     handles = []
     try:
         for name, cmd in (("node", node_cmd), ("record", rec_cmd)):
             say("4", f"start {name}: $ {' '.join(cmd)}  (log: {logs / f'{name}.log'})")
             handles.append(open(logs / f"{name}.log", "w"))  # noqa: SIM115 (closed below)
-            procs.append(subprocess.Popen(cmd, stdout=handles[-1], stderr=subprocess.STDOUT,
-                                          env=env))
+            procs.append(
+                subprocess.Popen(cmd, stdout=handles[-1], stderr=subprocess.STDOUT, env=env)
+            )
         time.sleep(3.0)  # discovery; play starts only when both are up
         for p, name in zip(procs, ("node", "record"), strict=True):
             if p.poll() is not None:
@@ -279,9 +336,20 @@ def offline(model, effects, w) -> np.ndarray:
     p = w.p if w.p is not None else [None] * len(w)
     rows = np.empty((len(w), 6))
     for i in range(len(w)):
-        rows[i] = st.evaluate(model, float(w.t[i]), float(w.Fz[i]), float(w.kappa[i]),
-                              float(w.alpha[i]), float(w.gamma[i]), float(Vx[i]), None,
-                              None if p[i] is None else float(p[i]), nom.p, nom.T, nom.Fz)
+        rows[i] = st.evaluate(
+            model,
+            float(w.t[i]),
+            float(w.Fz[i]),
+            float(w.kappa[i]),
+            float(w.alpha[i]),
+            float(w.gamma[i]),
+            float(Vx[i]),
+            None,
+            None if p[i] is None else float(p[i]),
+            nom.p,
+            nom.T,
+            nom.Fz,
+        )
     return rows
 
 
@@ -333,24 +401,40 @@ def compare(forces_bag: Path, parts: dict, improved: Path, tir: Path, diag) -> b
         for k, c in enumerate(("Fx", "Fy")):
             dev = float(np.max(np.abs(node[:, k] - ref[:, k])))
             meas = getattr(sub, c)
-            say("4", f"{c}: node vs the improved model run offline: max |difference| "
-                     f"{dev:.2g} N over {len(idx)} messages")
+            say(
+                "4",
+                f"{c}: node vs the improved model run offline: max |difference| "
+                f"{dev:.2g} N over {len(idx)} messages",
+            )
             full = preds.get(f"improved_{c}")
-            full_txt = ("" if full is None else f"; the diagnosis' improved model (hidden "
-                        f"states driven by the measured forces) {_rmse(full[keep], meas):.0f} N")
-            say("4", f"{c}: RMSE against the measured {c} on the replay: node (improved .tir "
-                     f"+ effects file) {_rmse(node[:, k], meas):.0f} N, default .tir "
-                     f"{_rmse(getattr(old, c), meas):.0f} N{full_txt}")
+            full_txt = (
+                ""
+                if full is None
+                else f"; the diagnosis' improved model (hidden "
+                f"states driven by the measured forces) {_rmse(full[keep], meas):.0f} N"
+            )
+            say(
+                "4",
+                f"{c}: RMSE against the measured {c} on the replay: node (improved .tir "
+                f"+ effects file) {_rmse(node[:, k], meas):.0f} N, default .tir "
+                f"{_rmse(getattr(old, c), meas):.0f} N{full_txt}",
+            )
             worst, answered = max(worst, dev), max(answered, len(idx))
             if not dev <= MATCH_TOL_N:
-                say("4", f"FAILED: the node's {c} differs from the improved model by more "
-                         f"than {MATCH_TOL_N} N")
+                say(
+                    "4",
+                    f"FAILED: the node's {c} differs from the improved model by more "
+                    f"than {MATCH_TOL_N} N",
+                )
                 ok = False
     if effects.not_carried:
         say("4", f"note: not carried by the effects file: {'; '.join(effects.not_carried)}")
     if ok:
-        say("4", f"=> the node's forces match the improved model: largest difference "
-                 f"{worst:.1g} N over {answered} force messages (tolerance {MATCH_TOL_N} N)")
+        say(
+            "4",
+            f"=> the node's forces match the improved model: largest difference "
+            f"{worst:.1g} N over {answered} force messages (tolerance {MATCH_TOL_N} N)",
+        )
     return ok
 
 
@@ -362,9 +446,12 @@ def step_truth(out: Path, wheels: dict, diag) -> None:
         return
     truth = json.loads(files[0].read_text())
     named = [e.name for e in diag.effects]
-    say("5", f"the rig ran: {', '.join(truth.get('effects', {}))}; omitted channels: "
-             f"{', '.join(truth.get('omitted', [])) or 'none'}; the words it expects: "
-             f"{', '.join(truth.get('diagnosis_words', [])) or 'none'}; named: {', '.join(named)}")
+    say(
+        "5",
+        f"the rig ran: {', '.join(truth.get('effects', {}))}; omitted channels: "
+        f"{', '.join(truth.get('omitted', [])) or 'none'}; the words it expects: "
+        f"{', '.join(truth.get('diagnosis_words', [])) or 'none'}; named: {', '.join(named)}",
+    )
     for prefix, w in wheels.items():
         trace = truth.get("wheels", {}).get(prefix, {}).get("hidden_trace") or {}
         T_inf = (diag.inferred.get(prefix) or {}).get("T")
@@ -373,9 +460,12 @@ def step_truth(out: Path, wheels: dict, diag) -> None:
         t_rel = np.asarray(trace["t_s"], dtype=float)
         T_at = np.interp(t_rel, w.t - w.t[0], np.asarray(T_inf, dtype=float))
         r = float(np.corrcoef(T_at, np.asarray(trace["T_surface"], dtype=float))[0, 1])
-        say("5", f"{prefix}: inferred tread temperature vs the rig's hidden tread surface: "
-                 f"correlation r = {r:.2f} (the rig's three-node model with a grip window is "
-                 "not the diagnosis' tread node on the TTX/TTY terms; its scale is a convention)")
+        say(
+            "5",
+            f"{prefix}: inferred tread temperature vs the rig's hidden tread surface: "
+            f"correlation r = {r:.2f} (the rig's three-node model with a grip window is "
+            "not the diagnosis' tread node on the TTX/TTY terms; its scale is a convention)",
+        )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -396,8 +486,11 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError, RuntimeError, subprocess.TimeoutExpired) as exc:
         print(f"\ndemo: FAILED in step '{_STEP['now']}': {exc}", file=sys.stderr, flush=True)
         return 1
-    say("demo", f"{'done' if ok else 'FAILED at the node step'} in "
-                f"{time.monotonic() - start:.0f} s; everything is in {out}")
+    say(
+        "demo",
+        f"{'done' if ok else 'FAILED at the node step'} in "
+        f"{time.monotonic() - start:.0f} s; everything is in {out}",
+    )
     return 0 if ok else 1
 
 

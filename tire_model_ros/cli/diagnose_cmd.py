@@ -128,8 +128,10 @@ def run(args) -> int:
                 print(f"  held-out {ch} RMSE against {args.reference}: {a:.1f} -> {b:.1f}")
         for ch, v in ref["heldout_floor"].items():
             if v["rmse"] is not None:
-                print(f"  held-out {ch} RMSE floor (the true physics on this recording's "
-                      f"noise): {v['rmse']:.1f}")
+                print(
+                    f"  held-out {ch} RMSE floor (the true physics on this recording's "
+                    f"noise): {v['rmse']:.1f}"
+                )
         write_json_atomic(ref, args.reference_json, overwrite=args.force)
         print(f"wrote {args.reference_json}")
     if args.report:
@@ -145,10 +147,14 @@ def run(args) -> int:
         )
         print(f"wrote {out_tir}")
         effects = diag.node_effects(Path(out_tir).name)
-        write_atomic(out_effects, effects.to_json(),
-                     overwrite=args.force or bool(args.report and not args.out_tir))
-        print(f"wrote {out_effects} (hidden states for the node's effects_file"
-              + (f"; not carried: {'; '.join(effects.not_carried)})" if effects.not_carried
-                 else ")"))
+        write_atomic(
+            out_effects,
+            effects.to_json(),
+            overwrite=args.force or bool(args.report and not args.out_tir),
+        )
+        print(
+            f"wrote {out_effects} (hidden states for the node's effects_file"
+            + (f"; not carried: {'; '.join(effects.not_carried)})" if effects.not_carried else ")")
+        )
     sys.stdout.flush()
     return 0

@@ -48,17 +48,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ..rig import EFFECTS, OMITTABLE, PROGRAMMES
 
     parser.add_argument("--tir", required=True, help="tyre property file the rig's tyre follows")
-    parser.add_argument("--programme", required=True, metavar="NAME[:k=v,...]",
-                        help=f"one of {', '.join(PROGRAMMES)}; options e.g. "
-                             "flat_trac:repeats=2,rate_scale=0.5")
-    parser.add_argument("-o", "--output", required=True, metavar="BAG",
-                        help="output bag (folder, or a lone .mcap file)")
-    parser.add_argument("--effect", action="append", default=[], metavar="NAME[:k=v,...]",
-                        help=f"switch an effect on (repeatable): {', '.join(EFFECTS)}; "
-                             "'noise:off' switches the default noise off")
-    parser.add_argument("--omit", action="append", default=[], metavar="CHANNEL",
-                        help=f"leave a channel out of the bag (repeatable or comma list): "
-                             f"{', '.join(OMITTABLE)}")
+    parser.add_argument(
+        "--programme",
+        required=True,
+        metavar="NAME[:k=v,...]",
+        help=f"one of {', '.join(PROGRAMMES)}; options e.g. flat_trac:repeats=2,rate_scale=0.5",
+    )
+    parser.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="BAG",
+        help="output bag (folder, or a lone .mcap file)",
+    )
+    parser.add_argument(
+        "--effect",
+        action="append",
+        default=[],
+        metavar="NAME[:k=v,...]",
+        help=f"switch an effect on (repeatable): {', '.join(EFFECTS)}; "
+        "'noise:off' switches the default noise off",
+    )
+    parser.add_argument(
+        "--omit",
+        action="append",
+        default=[],
+        metavar="CHANNEL",
+        help=f"leave a channel out of the bag (repeatable or comma list): {', '.join(OMITTABLE)}",
+    )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--rate", type=float, default=100.0, help="slip sample rate [Hz]")
     parser.add_argument("--force", action="store_true", help="overwrite BAG and its truth file")
@@ -84,13 +101,20 @@ def run(args: argparse.Namespace) -> int:
         effects[name] = params or True
     omit = [c.strip() for item in args.omit for c in item.split(",") if c.strip()]
     wheels, truth = simulate_session(
-        args.tir, prog, effects=effects, omit=omit, seed=args.seed, rate_hz=args.rate,
+        args.tir,
+        prog,
+        effects=effects,
+        omit=omit,
+        seed=args.seed,
+        rate_hz=args.rate,
         programme_options={k: _programme_value(v) for k, v in popt.items()},
     )
     _, tpath = write_session(bag, wheels, truth, overwrite=args.force)
     n = sum(len(w) for w in wheels)
     on = ", ".join(truth["effects"]) or "none"
-    print(f"{bag}: {truth['programme']} {truth['duration_s']:.1f} s, {len(wheels)} wheel(s), "
-          f"{n} samples; effects: {on}; omitted: {', '.join(truth['omitted']) or 'none'}")
+    print(
+        f"{bag}: {truth['programme']} {truth['duration_s']:.1f} s, {len(wheels)} wheel(s), "
+        f"{n} samples; effects: {on}; omitted: {', '.join(truth['omitted']) or 'none'}"
+    )
     print(f"{tpath}: truth")
     return 0

@@ -888,13 +888,17 @@ def _offset_refused(key, ms, moves, ctx, log) -> bool:
             )
             return True
         if size < OFFSET_MIN_SIGMA * ctx.sigma[ch]:
-            log.append(f"offset on {ch} rejected: {prefix} reads {size:.1f} N at rest, below "
-                       f"{OFFSET_MIN_SIGMA:g} noise sigmas ({ctx.sigma[ch]:.1f} N)")
+            log.append(
+                f"offset on {ch} rejected: {prefix} reads {size:.1f} N at rest, below "
+                f"{OFFSET_MIN_SIGMA:g} noise sigmas ({ctx.sigma[ch]:.1f} N)"
+            )
             return True
     for label, d, zd in moves:
         if zd > sel.MIN_T_ALT and abs(d) > OFFSET_REL_TOL * size:
-            log.append(f"offset on {ch} rejected: {prefix} residual at rest differs by "
-                       f"{label} ({d:+.1f} N of {size:.1f} N, {zd:.1f} standard errors)")
+            log.append(
+                f"offset on {ch} rejected: {prefix} residual at rest differs by "
+                f"{label} ({d:+.1f} N of {size:.1f} N, {zd:.1f} standard errors)"
+            )
             return True
     return False
 

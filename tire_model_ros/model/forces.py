@@ -130,9 +130,7 @@ def Kya_cornering_stiffness(P, Fz: float, dpi: float, gamma: float, dT: float) -
     """
     Fz0p = nominal_load(P)
     load_term = (
-        (P[c.PKY2] + P[c.PKY5] * gamma * gamma)
-        * (1.0 + P[c.PPY2] * dpi)
-        * (1.0 + P[c.TTY2] * dT)
+        (P[c.PKY2] + P[c.PKY5] * gamma * gamma) * (1.0 + P[c.PPY2] * dpi) * (1.0 + P[c.TTY2] * dT)
     )
     return (
         P[c.PKY1]
@@ -218,9 +216,7 @@ def Gxa_weighting(P, kappa: float, alpha: float, gamma: float, dfz: float, limit
         Exa = 1.0
     SHxa = P[c.RHX1]  # (4.E57)
     Bxa = (
-        (P[c.RBX1] + P[c.RBX3] * gamma * gamma)
-        * cos_atan(P[c.RBX2] * kappa)
-        * P[c.LXAL]
+        (P[c.RBX1] + P[c.RBX3] * gamma * gamma) * cos_atan(P[c.RBX2] * kappa) * P[c.LXAL]
     )  # (4.E54)
     alphas = alpha + SHxa  # (4.E53)
     return weighting(Bxa, Cxa, Exa, alphas) / weighting(Bxa, Cxa, Exa, SHxa)  # (4.E51), (4.E52)

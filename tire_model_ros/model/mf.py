@@ -28,6 +28,7 @@ from .params import PARAMETERS
 if TYPE_CHECKING:
     from .tir import TirData
 
+
 def _pressure_nominal(params: Mapping[str, float]) -> float:
     """INFLPRES if given, else NOMPRES (the 'None' pressure of evaluate)."""
     infl = params.get("INFLPRES", 0.0)

@@ -62,8 +62,7 @@ class WheelEffects:
         if self.offsets:
             d["offsets"] = {ch: {"N": a, "N_at_FNOMIN": b} for ch, (a, b) in self.offsets.items()}
         if self.speed_table is not None:
-            d["speed_table"] = {"ln_Vs": list(self.speed_table[0]),
-                                "mu": list(self.speed_table[1])}
+            d["speed_table"] = {"ln_Vs": list(self.speed_table[0]), "mu": list(self.speed_table[1])}
         return d
 
 
@@ -88,9 +87,13 @@ class Effects:
         return None
 
     def to_json(self) -> str:
-        doc = {"format": FORMAT, "version": VERSION, "tir": self.tir,
-               "wheels": {p: w.to_dict() for p, w in self.wheels.items()},
-               "not_carried": list(self.not_carried)}
+        doc = {
+            "format": FORMAT,
+            "version": VERSION,
+            "tir": self.tir,
+            "wheels": {p: w.to_dict() for p, w in self.wheels.items()},
+            "not_carried": list(self.not_carried),
+        }
         return json.dumps(doc, indent=2, allow_nan=False) + "\n"
 
     @classmethod
@@ -157,8 +160,9 @@ def _wheel(d: object, where: str) -> WheelEffects:
             raise EffectsError(f"{w}: values must be finite, mu > 0")
         table = (lnV, mu)
     T_amb = _number(d, "T_amb_C", where, -T_ABS0_C) if "T_amb_C" in d else 25.0
-    return WheelEffects(T_amb, nodes.get("thermal"), nodes.get("bulk"), loss, nodes.get("gas"),
-                        offsets, table)
+    return WheelEffects(
+        T_amb, nodes.get("thermal"), nodes.get("bulk"), loss, nodes.get("gas"), offsets, table
+    )
 
 
 def gas_pressure_Pa(p0_gauge_Pa, rise_K, T0_C: float):
@@ -180,8 +184,11 @@ class EffectState:
     def __init__(self, effects: WheelEffects) -> None:
         self.fx = effects
         # the table as arrays once: numpy.interp, as the diagnosis evaluates it
-        self._table = None if effects.speed_table is None else tuple(
-            np.asarray(v, dtype=np.float64) for v in effects.speed_table)
+        self._table = (
+            None
+            if effects.speed_table is None
+            else tuple(np.asarray(v, dtype=np.float64) for v in effects.speed_table)
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -212,9 +219,17 @@ class EffectState:
     def temperature_C(self) -> float:
         return self.fx.T_amb_C + self.y["thermal"]
 
-    def inputs(self, t_s: float, kappa: float, alpha: float, Vx: float, T_C: float | None,
-               p_Pa: float | None, p_nom: float, T_nom: float
-               ) -> tuple[float, float, float, float, float]:
+    def inputs(
+        self,
+        t_s: float,
+        kappa: float,
+        alpha: float,
+        Vx: float,
+        T_C: float | None,
+        p_Pa: float | None,
+        p_nom: float,
+        T_nom: float,
+    ) -> tuple[float, float, float, float, float]:
         """(kappa, alpha, T, p, s) for the model at ``t_s`` [s]; s is the friction scale.
 
         A temperature ``T_C`` [degC] or gauge pressure ``p_Pa`` that is None (not measured)
@@ -242,9 +257,22 @@ class EffectState:
             kappa, alpha = kappa / s, math.atan(math.tan(alpha) / s)
         return kappa, alpha, T, p, s
 
-    def evaluate(self, model, t_s: float, Fz: float, kappa: float, alpha: float, gamma: float,
-                 Vx: float, T_C: float | None, p_Pa: float | None, p_nom: float, T_nom: float,
-                 FNOMIN: float, limits: bool = True) -> tuple[float, ...]:
+    def evaluate(
+        self,
+        model,
+        t_s: float,
+        Fz: float,
+        kappa: float,
+        alpha: float,
+        gamma: float,
+        Vx: float,
+        T_C: float | None,
+        p_Pa: float | None,
+        p_nom: float,
+        T_nom: float,
+        FNOMIN: float,
+        limits: bool = True,
+    ) -> tuple[float, ...]:
         """One sample of the improved model: :meth:`inputs`, ``model.evaluate_one`` at them,
         :meth:`outputs` (Fx, Fy, Fz, Mx, My, Mz). What the node computes per slip message."""
         k, a, T, p, s = self.inputs(t_s, kappa, alpha, Vx, T_C, p_Pa, p_nom, T_nom)
@@ -255,8 +283,16 @@ class EffectState:
         a, b = self.fx.offsets.get(ch, (0.0, 0.0))
         return a + b * load
 
-    def outputs(self, out: tuple[float, ...], s: float, Fz: float, kappa: float, alpha: float,
-                Vx: float, FNOMIN: float) -> tuple[float, ...]:
+    def outputs(
+        self,
+        out: tuple[float, ...],
+        s: float,
+        Fz: float,
+        kappa: float,
+        alpha: float,
+        Vx: float,
+        FNOMIN: float,
+    ) -> tuple[float, ...]:
         """(Fx, Fy, Fz, Mx, My, Mz) scaled by s (Fx, Fy, Mz), with the offsets (their load
         part in proportion to Fz / FNOMIN); its frictional power |Fx V kappa| +
         |Fy V tan(alpha)| (the slips before the similarity method) drives the next step."""

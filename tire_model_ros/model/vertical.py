@@ -227,12 +227,7 @@ def relaxation(P, Fz, dfz, dpi, gamma, Kxk, Kya, is_mf52):
         Fz0 = P[c.FNOMIN]
         Fz0p = P[c.LFZO] * Fz0
         sigmax = (
-            (P[c.PTX1] + P[c.PTX2] * dfz)
-            * math.exp(-P[c.PTX3] * dfz)
-            * P[c.LSGKP]
-            * R0
-            * Fz
-            / Fz0
+            (P[c.PTX1] + P[c.PTX2] * dfz) * math.exp(-P[c.PTX3] * dfz) * P[c.LSGKP] * R0 * Fz / Fz0
         )
         sigmay = (
             P[c.PTY1]

@@ -186,8 +186,19 @@ class WheelState:
                 out = model.evaluate_one(Fz, kappa, alpha, gamma, Vx, p, T, limits=limits)
             else:
                 out = self.effects.evaluate(
-                    model, stamp, Fz, kappa, alpha, gamma, Vx, T if sT == "ok" else None,
-                    p if sp == "ok" else None, nominal.p, nominal.T, nominal.Fz, limits,
+                    model,
+                    stamp,
+                    Fz,
+                    kappa,
+                    alpha,
+                    gamma,
+                    Vx,
+                    T if sT == "ok" else None,
+                    p if sp == "ok" else None,
+                    nominal.p,
+                    nominal.T,
+                    nominal.Fz,
+                    limits,
                 )
         except Exception as exc:  # whatever the model raises, the node keeps running
             self.model_errors += 1

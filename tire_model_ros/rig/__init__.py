@@ -9,5 +9,13 @@ from .effects import DIAGNOSIS_WORD, EFFECTS
 from .programmes import PROGRAMMES
 from .session import OMITTABLE, simulate_session, truth_path, write_session
 
-__all__ = ["DIAGNOSIS_WORD", "EFFECTS", "EFFECT_DEFAULTS", "OMITTABLE", "PROGRAMMES",
-           "simulate_session", "truth_path", "write_session"]
+__all__ = [
+    "DIAGNOSIS_WORD",
+    "EFFECTS",
+    "EFFECT_DEFAULTS",
+    "OMITTABLE",
+    "PROGRAMMES",
+    "simulate_session",
+    "truth_path",
+    "write_session",
+]

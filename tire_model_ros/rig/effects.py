@@ -66,9 +66,16 @@ NON_NEGATIVE = {
     "load_ripple": ("amplitude",),
 }
 DIAGNOSIS_WORD = {
-    "heating": "temperature", "gas_pressure": "pressure", "relaxation": "relaxation",
-    "delay": "time_delay", "offset": "offset", "camber": "camber", "combined": "combined_slip",
-    "speed_friction": "speed", "wear": "drift", "mu_step": "drift",
+    "heating": "temperature",
+    "gas_pressure": "pressure",
+    "relaxation": "relaxation",
+    "delay": "time_delay",
+    "offset": "offset",
+    "camber": "camber",
+    "combined": "combined_slip",
+    "speed_friction": "speed",
+    "wear": "drift",
+    "mu_step": "drift",
 }
 DEFAULT_ON = ("noise",)
 
@@ -95,13 +102,16 @@ def resolve_effects(effects) -> dict[str, dict[str, float]]:
         if isinstance(value, Mapping):
             for k, v in value.items():
                 if k not in params:
-                    raise ValueError(f"effect {name}: unknown parameter {k!r} "
-                                     f"(known: {', '.join(params) or 'none'})")
+                    raise ValueError(
+                        f"effect {name}: unknown parameter {k!r} "
+                        f"(known: {', '.join(params) or 'none'})"
+                    )
                 try:
                     params[k] = float(v)
                 except (TypeError, ValueError):
-                    raise ValueError(f"effect {name}: parameter {k} must be a number, "
-                                     f"got {v!r}") from None
+                    raise ValueError(
+                        f"effect {name}: parameter {k} must be a number, got {v!r}"
+                    ) from None
                 if not math.isfinite(params[k]):
                     raise ValueError(f"effect {name}: parameter {k} must be finite")
         elif value is not True:
@@ -119,8 +129,9 @@ def resolve_effects(effects) -> dict[str, dict[str, float]]:
 # ------------------------------------------------------------------ relaxation, delay
 
 
-def relaxation_length_alpha(Fz: np.ndarray, FNOMIN: float, sigma_alpha_m: float,
-                            load_dependent: bool) -> np.ndarray:
+def relaxation_length_alpha(
+    Fz: np.ndarray, FNOMIN: float, sigma_alpha_m: float, load_dependent: bool
+) -> np.ndarray:
     """sigma_alpha(Fz): saturating in load like a 205/60R15 (0.35/0.52/0.55 m at 2/4/6 kN),
     scaled so that sigma_alpha(FNOMIN) = sigma_alpha_m."""
     if not load_dependent:
@@ -130,8 +141,9 @@ def relaxation_length_alpha(Fz: np.ndarray, FNOMIN: float, sigma_alpha_m: float,
     return sigma_alpha_m * np.maximum(shape, 0.05) / (1.0 - math.exp(-1.0 / 0.375))
 
 
-def first_order_in_distance(u: np.ndarray, Vx: np.ndarray, sigma: np.ndarray,
-                            dt: float) -> np.ndarray:
+def first_order_in_distance(
+    u: np.ndarray, Vx: np.ndarray, sigma: np.ndarray, dt: float
+) -> np.ndarray:
     """sigma du'/ds + u' = u, exact step for piecewise-constant input (s = travelled distance)."""
     a = 1.0 - np.exp(-np.abs(Vx) * dt / np.maximum(sigma, 1e-4))
     return _lag(np.ascontiguousarray(u, dtype=np.float64), np.ascontiguousarray(a))
@@ -155,8 +167,14 @@ def delayed(x: np.ndarray, t: np.ndarray, tau_s: float) -> np.ndarray:
 # ------------------------------------------------------------------ force-level effects
 
 
-def camber_thrust(Fz: np.ndarray, gamma: np.ndarray, alpha: np.ndarray, per_deg: float,
-                  saturation_deg: float, fade_deg: float) -> np.ndarray:
+def camber_thrust(
+    Fz: np.ndarray,
+    gamma: np.ndarray,
+    alpha: np.ndarray,
+    per_deg: float,
+    saturation_deg: float,
+    fade_deg: float,
+) -> np.ndarray:
     """Extra camber thrust: per_deg*Fz per degree, saturating in gamma (tanh), fading with
     |alpha| as the contact patch slides (Lorentzian in alpha)."""
     g_deg = np.degrees(gamma)
@@ -169,7 +187,7 @@ def savkoor_factor(Vs: np.ndarray, mu0_ratio: float, Vm_mps: float, h: float) ->
     """Savkoor-type friction vs sliding speed: mu0 + (mum - mu0) exp(-h^2 ln^2(Vs/Vm)),
     divided by mum (1 at Vs = Vm)."""
     x = np.log(np.maximum(Vs, 1e-4) / Vm_mps)
-    return mu0_ratio + (1.0 - mu0_ratio) * np.exp(-(h * x) ** 2)
+    return mu0_ratio + (1.0 - mu0_ratio) * np.exp(-((h * x) ** 2))
 
 
 def sliding_speed(Vx: np.ndarray, kappa: np.ndarray, alpha: np.ndarray) -> np.ndarray:
@@ -180,8 +198,9 @@ def sliding_speed(Vx: np.ndarray, kappa: np.ndarray, alpha: np.ndarray) -> np.nd
 # ------------------------------------------------------------------ sensor noise
 
 
-def coloured_noise(rng: np.random.Generator, n: int, sd: float, colour: float, tau_s: float,
-                   dt: float) -> np.ndarray:
+def coloured_noise(
+    rng: np.random.Generator, n: int, sd: float, colour: float, tau_s: float, dt: float
+) -> np.ndarray:
     """White Gaussian noise of sd plus AR(1) noise of sd*colour with time constant tau_s."""
     if sd <= 0.0:
         return np.zeros(n)
@@ -198,8 +217,17 @@ def coloured_noise(rng: np.random.Generator, n: int, sd: float, colour: float, t
 def noise_sd(FNOMIN: float, R0: float) -> dict[str, float]:
     """Sensor noise standard deviations of a Flat-Trac class rig (scaled with the tyre)."""
     return {
-        "kappa": 2e-4, "alpha": 0.02 * DEG, "gamma": 0.01 * DEG,
-        "Fz": 0.003 * FNOMIN, "Vx": 0.02, "p": 300.0, "T": 0.3,
-        "Fx": 0.003 * FNOMIN, "Fy": 0.003 * FNOMIN, "Fz_meas": 0.003 * FNOMIN,
-        "Mx": 0.001 * FNOMIN * R0, "My": 0.001 * FNOMIN * R0, "Mz": 0.0005 * FNOMIN * R0,
+        "kappa": 2e-4,
+        "alpha": 0.02 * DEG,
+        "gamma": 0.01 * DEG,
+        "Fz": 0.003 * FNOMIN,
+        "Vx": 0.02,
+        "p": 300.0,
+        "T": 0.3,
+        "Fx": 0.003 * FNOMIN,
+        "Fy": 0.003 * FNOMIN,
+        "Fz_meas": 0.003 * FNOMIN,
+        "Mx": 0.001 * FNOMIN * R0,
+        "My": 0.001 * FNOMIN * R0,
+        "Mz": 0.0005 * FNOMIN * R0,
     }

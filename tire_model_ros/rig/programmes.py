@@ -59,8 +59,13 @@ class Segment:
     info: dict = field(default_factory=dict)
 
     def to_json(self, rate_hz: float) -> dict:
-        return {"t0_s": self.i0 / rate_hz, "t1_s": self.i1 / rate_hz, "kind": self.kind,
-                "label": self.label, **self.info}
+        return {
+            "t0_s": self.i0 / rate_hz,
+            "t1_s": self.i1 / rate_hz,
+            "kind": self.kind,
+            "label": self.label,
+            **self.info,
+        }
 
 
 @dataclass
@@ -107,8 +112,12 @@ class TyreInfo:
     @classmethod
     def from_params(cls, params: Mapping[str, float]) -> TyreInfo:
         nompres = params.get("INFLPRES") or params.get("NOMPRES") or 2.0e5
-        return cls(FNOMIN=float(params["FNOMIN"]), LONGVL=float(params.get("LONGVL") or 16.7),
-                   NOMPRES=float(nompres), R0=float(params.get("UNLOADED_RADIUS") or 0.3))
+        return cls(
+            FNOMIN=float(params["FNOMIN"]),
+            LONGVL=float(params.get("LONGVL") or 16.7),
+            NOMPRES=float(nompres),
+            R0=float(params.get("UNLOADED_RADIUS") or 0.3),
+        )
 
 
 # ------------------------------------------------------------------ single-wheel builder
@@ -118,11 +127,13 @@ class RigBuilder:
     """Appends segments for one rig wheel; the rig state (load, speed, pressure, camber)
     carries over and every change of state gets a short zero-slip transition."""
 
-    def __init__(self, tyre: TyreInfo, rate_hz: float, rate_scale: float = 1.0,
-                 ambient_C: float = 25.0):
+    def __init__(
+        self, tyre: TyreInfo, rate_hz: float, rate_scale: float = 1.0, ambient_C: float = 25.0
+    ):
         self.tyre, self.fs, self.rate_scale, self.ambient = tyre, rate_hz, rate_scale, ambient_C
-        self.cols: dict[str, list[np.ndarray]] = {k: [] for k in
-                                                  ("kappa", "alpha", "gamma", "Fz", "Vx", "p")}
+        self.cols: dict[str, list[np.ndarray]] = {
+            k: [] for k in ("kappa", "alpha", "gamma", "Fz", "Vx", "p")
+        }
         self.run: list[np.ndarray] = []
         self.segments: list[Segment] = []
         self.state = {"Fz": tyre.FNOMIN, "Vx": tyre.LONGVL, "p": tyre.NOMPRES, "gamma": 0.0}
@@ -131,17 +142,21 @@ class RigBuilder:
         self.speed = tyre.LONGVL  # the session's reference belt speed
 
     # -- primitives
-    def _append(self, kind: str, label: str, kappa, alpha, gamma=None, Fz=None, Vx=None, p=None,
-                **info) -> None:
+    def _append(
+        self, kind: str, label: str, kappa, alpha, gamma=None, Fz=None, Vx=None, p=None, **info
+    ) -> None:
         m = len(kappa)
         if m == 0:
             return
         s = self.state
-        full = {"kappa": kappa, "alpha": alpha,
-                "gamma": np.full(m, s["gamma"]) if gamma is None else gamma,
-                "Fz": np.full(m, s["Fz"]) if Fz is None else Fz,
-                "Vx": np.full(m, s["Vx"]) if Vx is None else Vx,
-                "p": np.full(m, s["p"]) if p is None else p}
+        full = {
+            "kappa": kappa,
+            "alpha": alpha,
+            "gamma": np.full(m, s["gamma"]) if gamma is None else gamma,
+            "Fz": np.full(m, s["Fz"]) if Fz is None else Fz,
+            "Vx": np.full(m, s["Vx"]) if Vx is None else Vx,
+            "p": np.full(m, s["p"]) if p is None else p,
+        }
         for k, v in full.items():
             self.cols[k].append(np.asarray(v, dtype=float))
         self.run.append(np.full(m, self.run_index))
@@ -165,8 +180,16 @@ class RigBuilder:
         if new["p"] != self.state["p"]:
             self.run_index += 1  # re-inflation starts a new run (gas law reference is reset)
         zeros = np.zeros(m)
-        self._append("transition", "set-up", zeros, zeros, gamma=ramps["gamma"], Fz=ramps["Fz"],
-                     Vx=ramps["Vx"], p=ramps["p"])
+        self._append(
+            "transition",
+            "set-up",
+            zeros,
+            zeros,
+            gamma=ramps["gamma"],
+            Fz=ramps["Fz"],
+            Vx=ramps["Vx"],
+            p=ramps["p"],
+        )
         self.state = new
 
     def pause(self, duration_s: float, label: str = "pause") -> None:
@@ -190,27 +213,43 @@ class RigBuilder:
 
     def _info(self, **extra) -> dict:
         s = self.state
-        return {"Fz_N": s["Fz"], "Vx_mps": s["Vx"], "p_Pa": s["p"],
-                "gamma_deg": s["gamma"] / DEG, **extra}
+        return {
+            "Fz_N": s["Fz"],
+            "Vx_mps": s["Vx"],
+            "p_Pa": s["p"],
+            "gamma_deg": s["gamma"] / DEG,
+            **extra,
+        }
 
-    def lateral_sweep(self, amplitude_deg=10.0, rate_deg_s=3.0, reverse=False, kappa=0.0,
-                      label="lateral") -> None:
+    def lateral_sweep(
+        self, amplitude_deg=10.0, rate_deg_s=3.0, reverse=False, kappa=0.0, label="lateral"
+    ) -> None:
         """0 -> +A -> -A -> 0 (reverse: 0 -> -A -> +A -> 0) at a constant slip-angle rate."""
         A = amplitude_deg * DEG * (-1.0 if reverse else 1.0)
         rate = rate_deg_s * self.rate_scale * DEG
         alpha = self._path([0.0, A, -A, 0.0], rate)
-        self._append("lateral_sweep", label, np.full(len(alpha), kappa), alpha,
-                     **self._info(amplitude_deg=amplitude_deg, rate_deg_s=rate / DEG,
-                                  reverse=bool(reverse)))
+        self._append(
+            "lateral_sweep",
+            label,
+            np.full(len(alpha), kappa),
+            alpha,
+            **self._info(amplitude_deg=amplitude_deg, rate_deg_s=rate / DEG, reverse=bool(reverse)),
+        )
 
-    def longitudinal_sweep(self, kappa_max=0.15, rate_per_s=0.05, reverse=False, alpha_deg=0.0,
-                           label="longitudinal") -> None:
+    def longitudinal_sweep(
+        self, kappa_max=0.15, rate_per_s=0.05, reverse=False, alpha_deg=0.0, label="longitudinal"
+    ) -> None:
         """0 -> -k (braking) -> +k (drive) -> 0 (reverse: drive first) at constant rate."""
         k = kappa_max * (1.0 if reverse else -1.0)
         rate = rate_per_s * self.rate_scale
         kappa = self._path([0.0, k, -k, 0.0], rate)
-        self._append("longitudinal_sweep", label, kappa, np.full(len(kappa), alpha_deg * DEG),
-                     **self._info(kappa_max=kappa_max, rate_per_s=rate, reverse=bool(reverse)))
+        self._append(
+            "longitudinal_sweep",
+            label,
+            kappa,
+            np.full(len(kappa), alpha_deg * DEG),
+            **self._info(kappa_max=kappa_max, rate_per_s=rate, reverse=bool(reverse)),
+        )
 
     def combined_sweep(self, alpha_deg: float, kappa_max=0.12, rate_per_s=0.05) -> None:
         """Slip angle ramped to alpha and held while kappa is swept, then ramped back."""
@@ -218,9 +257,13 @@ class RigBuilder:
         ramp = self._path([0.0, a], 4.0 * DEG)
         kappa = self._path([0.0, -kappa_max, kappa_max, 0.0], rate_per_s * self.rate_scale)
         self._append("transition", "alpha ramp", np.zeros(len(ramp)), ramp)
-        self._append("combined_sweep", f"combined alpha={alpha_deg:g}deg", kappa,
-                     np.full(len(kappa), a), **self._info(alpha_deg=alpha_deg,
-                                                         kappa_max=kappa_max))
+        self._append(
+            "combined_sweep",
+            f"combined alpha={alpha_deg:g}deg",
+            kappa,
+            np.full(len(kappa), a),
+            **self._info(alpha_deg=alpha_deg, kappa_max=kappa_max),
+        )
         self._append("transition", "alpha ramp", np.zeros(len(ramp)), ramp[::-1].copy())
 
     def warmup(self, duration_s=30.0, alpha_deg=4.0, kappa=0.04, period_s=4.0) -> None:
@@ -248,8 +291,13 @@ class RigBuilder:
         m = self._samples(cycles / freq_hz)
         t = np.arange(m) / self.fs
         alpha = amplitude_deg * DEG * np.sin(2 * math.pi * freq_hz * t)
-        self._append("steer_sine", label or f"steer sine {freq_hz:g} Hz", np.zeros(m), alpha,
-                     **self._info(freq_hz=freq_hz, amplitude_deg=amplitude_deg))
+        self._append(
+            "steer_sine",
+            label or f"steer sine {freq_hz:g} Hz",
+            np.zeros(m),
+            alpha,
+            **self._info(freq_hz=freq_hz, amplitude_deg=amplitude_deg),
+        )
 
     def step_steer(self, alpha_deg=2.0, hold_s=3.0, rate_deg_s=40.0) -> None:
         """Fast slip-angle step, held, and back (a relaxation-length test)."""
@@ -257,8 +305,13 @@ class RigBuilder:
         up = self._path([0.0, a], rate_deg_s * DEG)
         m = self._samples(hold_s)
         alpha = np.concatenate([up, np.full(m, a), up[::-1], np.zeros(m)])
-        self._append("step_steer", f"step steer {alpha_deg:g} deg", np.zeros(len(alpha)), alpha,
-                     **self._info(alpha_deg=alpha_deg, rate_deg_s=rate_deg_s))
+        self._append(
+            "step_steer",
+            f"step steer {alpha_deg:g} deg",
+            np.zeros(len(alpha)),
+            alpha,
+            **self._info(alpha_deg=alpha_deg, rate_deg_s=rate_deg_s),
+        )
 
     def reference_sweep(self, label="reference") -> None:
         tyre = self.tyre
@@ -267,8 +320,16 @@ class RigBuilder:
 
     def build(self, prefix: str = RIG_PREFIX) -> tuple[WheelProgramme, np.ndarray]:
         cat = {k: np.concatenate(v) for k, v in self.cols.items()}
-        wp = WheelProgramme(prefix, cat["kappa"], cat["alpha"], cat["gamma"], cat["Fz"],
-                            cat["Vx"], cat["p"], self.segments)
+        wp = WheelProgramme(
+            prefix,
+            cat["kappa"],
+            cat["alpha"],
+            cat["gamma"],
+            cat["Fz"],
+            cat["Vx"],
+            cat["p"],
+            self.segments,
+        )
         return wp, np.concatenate(self.run)
 
 
@@ -452,9 +513,19 @@ _RIG: dict[str, Callable[[RigBuilder, dict], None]] = {
 }
 PROGRAMMES = (*_RIG, "track")
 
-_DEFAULTS = {"repeats": 1, "rate_scale": 1.0, "amplitude_deg": 10.0, "kappa_max": 0.15,
-             "speed": None, "ambient_C": 25.0, "vary_pressure": None, "laps": 2,
-             "soak_s": 25.0, "soak_deg": 5.0, "stop_s": 0.0}
+_DEFAULTS = {
+    "repeats": 1,
+    "rate_scale": 1.0,
+    "amplitude_deg": 10.0,
+    "kappa_max": 0.15,
+    "speed": None,
+    "ambient_C": 25.0,
+    "vary_pressure": None,
+    "laps": 2,
+    "soak_s": 25.0,
+    "soak_deg": 5.0,
+    "stop_s": 0.0,
+}
 
 
 def _options(tyre: TyreInfo, options: Mapping | None, omit) -> dict:
@@ -478,8 +549,13 @@ def _options(tyre: TyreInfo, options: Mapping | None, omit) -> dict:
     return opt
 
 
-def build_programme(name: str, params: Mapping[str, float], rate_hz: float = 100.0,
-                    options: Mapping | None = None, omit=()) -> Programme:
+def build_programme(
+    name: str,
+    params: Mapping[str, float],
+    rate_hz: float = 100.0,
+    options: Mapping | None = None,
+    omit=(),
+) -> Programme:
     """The programme ``name`` for the tyre of ``params`` (FNOMIN, LONGVL, NOMPRES...)."""
     if rate_hz <= 0 or not math.isfinite(rate_hz):
         raise ValueError(f"rate must be a positive number of Hz, got {rate_hz}")

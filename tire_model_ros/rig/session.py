@@ -86,8 +86,9 @@ def _combined_similarity(model, Fz, kappa, alpha, gamma, Vx, p, T, peak_scale):
     return {"Fx": Fx, "Fy": Fy, "Mz": Mz, "Mx": oy.Mx, "My": ox.My}
 
 
-def tyre_forces(model: TireModel, Fz, kappa, alpha, gamma, Vx, p, T, mu, stiff,
-                combined: dict | None) -> dict[str, np.ndarray]:
+def tyre_forces(
+    model: TireModel, Fz, kappa, alpha, gamma, Vx, p, T, mu, stiff, combined: dict | None
+) -> dict[str, np.ndarray]:
     """Forces of the tyre on effective inputs with friction scale ``mu`` and slip-stiffness
     scale ``stiff`` (similarity method: F = mu F_model(stiff x / mu))."""
     r = stiff / mu
@@ -98,8 +99,13 @@ def tyre_forces(model: TireModel, Fz, kappa, alpha, gamma, Vx, p, T, mu, stiff,
     else:
         o = model.evaluate(Fz, km, am, gamma, Vx, p, T)
         f = {"Fx": o.Fx, "Fy": o.Fy, "Mz": o.Mz, "Mx": o.Mx, "My": o.My}
-    return {"Fx": mu * f["Fx"], "Fy": mu * f["Fy"], "Mz": mu * f["Mz"], "Mx": f["Mx"],
-            "My": f["My"]}
+    return {
+        "Fx": mu * f["Fx"],
+        "Fy": mu * f["Fy"],
+        "Mz": mu * f["Mz"],
+        "Mx": f["Mx"],
+        "My": f["My"],
+    }
 
 
 # ------------------------------------------------------------------ one wheel
@@ -121,8 +127,7 @@ def _contact_slips(wp: WheelProgramme, Fz, FN, eff, dt) -> tuple[np.ndarray, np.
     rx = eff["relaxation"]
     sig_a = fx.relaxation_length_alpha(Fz, FN, rx["sigma_alpha_m"], bool(rx["load_dependent"]))
     alpha = np.arctan(fx.first_order_in_distance(np.tan(wp.alpha), wp.Vx, sig_a, dt))
-    kappa = fx.first_order_in_distance(wp.kappa, wp.Vx, np.full(len(Fz), rx["sigma_kappa_m"]),
-                                       dt)
+    kappa = fx.first_order_in_distance(wp.kappa, wp.Vx, np.full(len(Fz), rx["sigma_kappa_m"]), dt)
     return kappa, alpha
 
 
@@ -134,8 +139,9 @@ def _static_friction(prog, tyre, V, kappa, alpha, eff) -> tuple[np.ndarray, floa
         sf = eff["speed_friction"]
         Vs_ref = sf["Vs_ref_mps"] if sf["Vs_ref_mps"] > 0 else 0.14 * tyre.LONGVL
         law = (sf["mu0_ratio"], sf["Vm_mps"], sf["h"])
-        mu *= (fx.savkoor_factor(fx.sliding_speed(V, kappa, alpha), *law)
-               / fx.savkoor_factor(np.array([Vs_ref]), *law))
+        mu *= fx.savkoor_factor(fx.sliding_speed(V, kappa, alpha), *law) / fx.savkoor_factor(
+            np.array([Vs_ref]), *law
+        )
     step_at = None
     if "mu_step" in eff:
         ms = eff["mu_step"]
@@ -157,8 +163,19 @@ def _thermal_fixed_point(model, prog, wp, tyre, Fz, kappa, alpha, mu_static, eff
     Ts = Tb = Tg = np.full(n, float(prog.T_ambient[0]))
     for iteration in range(MAX_THERMAL_ITERATIONS):
         T_model = Ts if "model_temperature" in eff else None
-        forces = tyre_forces(model, Fz, kappa, alpha, wp.gamma, wp.Vx, p_true, T_model, mu,
-                             stiff, eff.get("combined"))
+        forces = tyre_forces(
+            model,
+            Fz,
+            kappa,
+            alpha,
+            wp.gamma,
+            wp.Vx,
+            p_true,
+            T_model,
+            mu,
+            stiff,
+            eff.get("combined"),
+        )
         P_new = frictional_power(forces["Fx"], forces["Fy"], wp.Vx, kappa, alpha)
         converged = P is not None and np.max(np.abs(P_new - P)) < 1e-3 * (np.max(P_new) + 1.0)
         P = P_new
@@ -173,9 +190,17 @@ def _thermal_fixed_point(model, prog, wp, tyre, Fz, kappa, alpha, mu_static, eff
             mu *= _wear_factor(P, Ts, prog.T_ambient, dt, tyre.FNOMIN, eff["wear"])
         if gas:
             p_true = gas_law_pressure(wp.p_set, Tg, prog.run)
-    return {"forces": forces, "T_surface": Ts, "T_bulk": Tb, "T_gas": Tg, "p_true": p_true,
-            "mu_factor": mu, "stiffness_factor": stiff, "P_fric": P,
-            "iterations": iteration + 1}
+    return {
+        "forces": forces,
+        "T_surface": Ts,
+        "T_bulk": Tb,
+        "T_gas": Tg,
+        "p_true": p_true,
+        "mu_factor": mu,
+        "stiffness_factor": stiff,
+        "P_fric": P,
+        "iterations": iteration + 1,
+    }
 
 
 def _wear_factor(P, Ts, T_amb, dt, FNOMIN, wp: dict) -> np.ndarray:
@@ -197,11 +222,16 @@ def _force_effects(forces, Fz, gamma, alpha, t_rel, eff) -> dict:
         Mz_extra += of["mz_Nm"]
     if "camber" in eff:
         cb = eff["camber"]
-        Fy_extra += fx.camber_thrust(Fz, gamma, alpha, cb["per_deg"], cb["saturation_deg"],
-                                     cb["fade_deg"])
+        Fy_extra += fx.camber_thrust(
+            Fz, gamma, alpha, cb["per_deg"], cb["saturation_deg"], cb["fade_deg"]
+        )
     true_forces = {
-        "Fx": forces["Fx"] + Fx_extra, "Fy": forces["Fy"] + Fy_extra, "Fz_meas": Fz.copy(),
-        "Mx": forces["Mx"], "My": forces["My"], "Mz": forces["Mz"] + Mz_extra,
+        "Fx": forces["Fx"] + Fx_extra,
+        "Fy": forces["Fy"] + Fy_extra,
+        "Fz_meas": Fz.copy(),
+        "Mx": forces["Mx"],
+        "My": forces["My"],
+        "Mz": forces["Mz"] + Mz_extra,
     }
     if "delay" in eff:
         return {k: fx.delayed(v, t_rel, eff["delay"]["tau_s"]) for k, v in true_forces.items()}
@@ -212,22 +242,40 @@ def _sensors(wp, Fz, hid, meas, tyre, eff, rng, dt) -> dict:
     """What the rig's sensors record: commanded slips, load cell, IR tread temperature
     (first order, IR_SENSOR_TAU_S), gauge pressure, belt speed, forces; plus noise."""
     n = len(Fz)
-    T_sensor = fx.first_order_in_distance(hid["T_surface"], np.ones(n),
-                                          np.full(n, IR_SENSOR_TAU_S), dt)  # in time: V = 1
+    T_sensor = fx.first_order_in_distance(
+        hid["T_surface"], np.ones(n), np.full(n, IR_SENSOR_TAU_S), dt
+    )  # in time: V = 1
     load = Fz if eff.get("load_ripple", {}).get("recorded", 1.0) else wp.Fz.copy()
-    rec = {"kappa": wp.kappa, "alpha": wp.alpha, "gamma": wp.gamma, "Fz": load, "Vx": wp.Vx,
-           "p": hid["p_true"], "T": T_sensor, **meas}
+    rec = {
+        "kappa": wp.kappa,
+        "alpha": wp.alpha,
+        "gamma": wp.gamma,
+        "Fz": load,
+        "Vx": wp.Vx,
+        "p": hid["p_true"],
+        "T": T_sensor,
+        **meas,
+    }
     if "noise" in eff:
         nz = eff["noise"]
         sds = fx.noise_sd(tyre.FNOMIN, tyre.R0)
-        rec = {k: v + fx.coloured_noise(rng, n, sds[k] * nz["scale"], nz["colour"],
-                                        nz["tau_s"], dt) for k, v in rec.items()}
+        rec = {
+            k: v + fx.coloured_noise(rng, n, sds[k] * nz["scale"], nz["colour"], nz["tau_s"], dt)
+            for k, v in rec.items()
+        }
     return rec
 
 
-def _simulate_wheel(model: TireModel, tyre: TyreInfo, prog: Programme, wp: WheelProgramme,
-                    eff: dict[str, dict], omit: set[str], rng: np.random.Generator,
-                    trace_hz: float) -> tuple[WheelSeries, dict]:
+def _simulate_wheel(
+    model: TireModel,
+    tyre: TyreInfo,
+    prog: Programme,
+    wp: WheelProgramme,
+    eff: dict[str, dict],
+    omit: set[str],
+    rng: np.random.Generator,
+    trace_hz: float,
+) -> tuple[WheelSeries, dict]:
     dt = 1.0 / prog.rate_hz
     n = len(wp.Fz)
     t_rel = np.arange(n) * dt
@@ -241,13 +289,22 @@ def _simulate_wheel(model: TireModel, tyre: TyreInfo, prog: Programme, wp: Wheel
         rec["Mx"] = rec["My"] = rec["Mz"] = None
     t_ns = EPOCH_NS + np.round(np.arange(n) * (1e9 / prog.rate_hz)).astype(np.int64)
     series = WheelSeries(
-        prefix=wp.prefix, t=t_ns / 1e9, kappa=rec["kappa"], alpha=rec["alpha"],
-        gamma=rec["gamma"], Fz=rec["Fz"],
+        prefix=wp.prefix,
+        t=t_ns / 1e9,
+        kappa=rec["kappa"],
+        alpha=rec["alpha"],
+        gamma=rec["gamma"],
+        Fz=rec["Fz"],
         p=None if "pressure" in omit else rec["p"],
         T=None if "temperature" in omit else rec["T"],
         Vx=None if "velocity" in omit else rec["Vx"],
-        Fx=rec["Fx"], Fy=rec["Fy"], Fz_meas=rec["Fz_meas"], Mx=rec["Mx"], My=rec["My"],
-        Mz=rec["Mz"], meta={"t_ns": t_ns, "source": "virtual rig", "programme": prog.name},
+        Fx=rec["Fx"],
+        Fy=rec["Fy"],
+        Fz_meas=rec["Fz_meas"],
+        Mx=rec["Mx"],
+        My=rec["My"],
+        Mz=rec["Mz"],
+        meta={"t_ns": t_ns, "source": "virtual rig", "programme": prog.name},
     )
     hidden = {**hid, "alpha_eff": alpha, "kappa_eff": kappa, "Fz_true": Fz}
     E_total = float(np.sum(hid["P_fric"]) * dt)
@@ -271,9 +328,13 @@ def _sweep_summary(seg, hidden) -> dict:
     """Per sweep: surface temperature rise and grip factor loss (true, hidden)."""
     sl = slice(seg.i0, seg.i1)
     Ts, mu = hidden["T_surface"][sl], hidden["mu_factor"][sl]
-    out = {"T_surface_start_C": float(Ts[0]), "T_surface_peak_C": float(Ts.max()),
-           "dT_surface_K": float(Ts.max() - Ts[0]),
-           "mu_factor_start": float(mu[0]), "mu_factor_min": float(mu.min())}
+    out = {
+        "T_surface_start_C": float(Ts[0]),
+        "T_surface_peak_C": float(Ts.max()),
+        "dT_surface_K": float(Ts.max() - Ts[0]),
+        "mu_factor_start": float(mu[0]),
+        "mu_factor_min": float(mu.min()),
+    }
     return out
 
 
@@ -306,10 +367,13 @@ def _wheel_truth(wp, prog, hidden, E_total, step_at, trace_hz) -> dict:
     out = {"segments": segments, "hidden_summary": summary}
     if step:
         idx = np.arange(0, len(wp.Fz), step)
-        out["hidden_trace"] = {"t_s": (idx / fs).round(6).tolist(),
-                               **{k: np.round(hidden[k][idx], 6).tolist() for k in
-                                  ("T_surface", "T_bulk", "T_gas", "p_true", "mu_factor",
-                                   "stiffness_factor")}}
+        out["hidden_trace"] = {
+            "t_s": (idx / fs).round(6).tolist(),
+            **{
+                k: np.round(hidden[k][idx], 6).tolist()
+                for k in ("T_surface", "T_bulk", "T_gas", "p_true", "mu_factor", "stiffness_factor")
+            },
+        }
     return out
 
 
@@ -365,8 +429,9 @@ def simulate_session(
     seeds = np.random.SeedSequence(int(seed)).spawn(len(prog.wheels))
     wheels, wheel_truth = [], {}
     for wp, ss in zip(prog.wheels, seeds, strict=True):
-        s, tr = _simulate_wheel(model, tyre, prog, wp, eff, omit_set,
-                                np.random.default_rng(ss), truth_trace_hz)
+        s, tr = _simulate_wheel(
+            model, tyre, prog, wp, eff, omit_set, np.random.default_rng(ss), truth_trace_hz
+        )
         wheels.append(s)
         wheel_truth[wp.prefix] = tr
     truth = {
@@ -411,8 +476,9 @@ def truth_path(bag: str | Path) -> Path:
 SENSOR_RATES_HZ = {"pressure": 10.0, "temperature": 10.0}  # slow sensors of the rig
 
 
-def write_session(bag: str | Path, wheels: Sequence[WheelSeries], truth: dict, *,
-                  overwrite: bool = False) -> tuple[Path, Path]:
+def write_session(
+    bag: str | Path, wheels: Sequence[WheelSeries], truth: dict, *, overwrite: bool = False
+) -> tuple[Path, Path]:
     """Write the bag (write_recording, MCAP) and its truth file beside it, both atomically."""
     from ..recording.bag import write_recording
 

@@ -51,8 +51,9 @@ class HeatingParams:
         known = set(cls.__dataclass_fields__)
         bad = set(d) - known
         if bad:
-            raise ValueError(f"effect heating: unknown parameter(s) {sorted(bad)}; "
-                             f"known: {sorted(known)}")
+            raise ValueError(
+                f"effect heating: unknown parameter(s) {sorted(bad)}; known: {sorted(known)}"
+            )
         return cls(**{k: float(v) for k, v in d.items()})
 
     def to_dict(self) -> dict:
@@ -79,13 +80,24 @@ def _integrate(P_per_N, T_amb, dt, Ts0, Tb0, Tg0, k_s, tau_s, k_b, tau_b, tau_g)
     return Ts, Tb, Tg
 
 
-def integrate_nodes(P_W: np.ndarray, FNOMIN: float, T_amb: np.ndarray, dt: float,
-                    hp: HeatingParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def integrate_nodes(
+    P_W: np.ndarray, FNOMIN: float, T_amb: np.ndarray, dt: float, hp: HeatingParams
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Node temperatures [degC] from the frictional power P_W [W]; start at ambient."""
     T0 = float(T_amb[0])
-    return _integrate(np.ascontiguousarray(P_W / FNOMIN), np.ascontiguousarray(T_amb), dt,
-                      T0, T0, T0, hp.k_surface_K_per_m, hp.tau_surface_s, hp.k_bulk_K_per_m,
-                      hp.tau_bulk_s, hp.tau_gas_s)
+    return _integrate(
+        np.ascontiguousarray(P_W / FNOMIN),
+        np.ascontiguousarray(T_amb),
+        dt,
+        T0,
+        T0,
+        T0,
+        hp.k_surface_K_per_m,
+        hp.tau_surface_s,
+        hp.k_bulk_K_per_m,
+        hp.tau_bulk_s,
+        hp.tau_gas_s,
+    )
 
 
 def frictional_power(Fx, Fy, Vx, kappa, alpha) -> np.ndarray:

@@ -87,8 +87,10 @@ def build_track(tyre: TyreInfo, rate_hz: float, opt: dict) -> Programme:
     Fy_axle = {"f": m * ay * b_rear / L, "r": m * ay * a_front / L}
     # braking 65 % front; traction on the rear wheels only
     Fx_total = m * ax
-    Fx_axle = {"f": np.where(ax < 0, 0.65 * Fx_total, 0.0),
-               "r": np.where(ax < 0, 0.35 * Fx_total, Fx_total)}
+    Fx_axle = {
+        "f": np.where(ax < 0, 0.65 * Fx_total, 0.0),
+        "r": np.where(ax < 0, 0.35 * Fx_total, Fx_total),
+    }
     r_yaw = ay / V
     wheels = []
     for pre in CAR_PREFIXES:
@@ -98,20 +100,45 @@ def build_track(tyre: TyreInfo, rate_hz: float, opt: dict) -> Programme:
         share = loads[pre] / (loads[pre] + loads[mate])
         Vw = V - r_yaw * track / 2 if left else V + r_yaw * track / 2
         segs = [Segment(i0, i1, "track", f"lap {lap} {name}", {}) for i0, i1, name, lap in bounds]
-        wp = WheelProgramme(pre, kappa=Fx_axle[axle] * share, alpha=Fy_axle[axle] * share,
-                            gamma=np.zeros(n), Fz=loads[pre], Vx=Vw,
-                            p_set=np.full(n, tyre.NOMPRES), segments=segs)
+        wp = WheelProgramme(
+            pre,
+            kappa=Fx_axle[axle] * share,
+            alpha=Fy_axle[axle] * share,
+            gamma=np.zeros(n),
+            Fz=loads[pre],
+            Vx=Vw,
+            p_set=np.full(n, tyre.NOMPRES),
+            segments=segs,
+        )
         wp.needs_slip_inversion = True  # type: ignore[attr-defined]
         wheels.append(wp)
-    opt = {**opt, "car": {"mass_kg": m, "wheelbase_m": L, "cg_to_front_m": a_front,
-                          "cg_height_m": h, "track_m": track, "brake_bias_front": 0.65,
-                          "drive": "rear"}}
-    return Programme("track", fs, wheels, np.full(n, float(opt["ambient_C"])),
-                     np.zeros(n, dtype=int), opt)
+    opt = {
+        **opt,
+        "car": {
+            "mass_kg": m,
+            "wheelbase_m": L,
+            "cg_to_front_m": a_front,
+            "cg_height_m": h,
+            "track_m": track,
+            "brake_bias_front": 0.65,
+            "drive": "rear",
+        },
+    }
+    return Programme(
+        "track", fs, wheels, np.full(n, float(opt["ambient_C"])), np.zeros(n, dtype=int), opt
+    )
 
 
-def invert_pure(model, Fz: np.ndarray, demand: np.ndarray, Vx: np.ndarray, p: np.ndarray,
-                lateral: bool, grid_n: int = 61, loads_n: int = 16) -> np.ndarray:
+def invert_pure(
+    model,
+    Fz: np.ndarray,
+    demand: np.ndarray,
+    Vx: np.ndarray,
+    p: np.ndarray,
+    lateral: bool,
+    grid_n: int = 61,
+    loads_n: int = 16,
+) -> np.ndarray:
     """Slip (alpha [rad] or kappa) whose pure-slip force magnitude equals |demand| at each
     sample, on the rising branch of a (slip x load) table of the model at the mean speed and
     pressure; demands beyond 95 % of the peak give the slip of 95 % of the peak."""
