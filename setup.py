@@ -27,8 +27,8 @@ setup(
     python_requires=">=3.11",
     entry_points={
         "console_scripts": [
-            "tire_model_node = tire_model_ros.node:main",
-            "tire-model-node = tire_model_ros.node:main",
+            "tire_model_node = tire_model_ros.ros.node:main",
+            "tire-model-node = tire_model_ros.ros.node:main",
             "tire-model = tire_model_ros.cli:main",
         ],
     },

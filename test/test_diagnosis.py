@@ -259,7 +259,7 @@ def test_offset_is_named_constant_and_sized(model):
 def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
     """Noise only: 'none', nothing invented; JSON/report/improved .tir written atomically;
     scores against the noise-free twin (--reference) far below the raw ones."""
-    from tire_model_ros.recording.bag import write_recording
+    from tire_model_ros.recording import write_recording
 
     wheels, _ = _session(model, {}, seed=5)
     bag = tmp_path / "null_bag"

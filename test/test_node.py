@@ -22,9 +22,9 @@ import pytest
 from ros_util import NodeProcess, RosClient, exited_cleanly, node_command, ros_env, wait_for
 
 from tire_model_ros.model import TireModel
-from tire_model_ros.node import params as pn
-from tire_model_ros.node import realtime
-from tire_model_ros.node.wheel import Nominal, WheelState
+from tire_model_ros.ros import realtime
+from tire_model_ros.wheel import params as pn
+from tire_model_ros.wheel.state import Nominal, WheelState
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 
@@ -94,7 +94,7 @@ def test_cdr_fast_path_agrees_with_rclpy_serialisation():
     from rclpy.serialization import deserialize_message, serialize_message
     from sensor_msgs.msg import FluidPressure
 
-    from tire_model_ros.node import cdr_fast
+    from tire_model_ros.ros import cdr_fast
 
     for n in range(10):  # every frame_id length modulo the 8-byte alignment
         slip = Vector3Stamped()

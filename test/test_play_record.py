@@ -15,9 +15,9 @@ import pytest
 from ros_util import exited_cleanly
 from series_util import NS, assert_same, random_wheel
 
-from tire_model_ros.recording.bag import RecordingError, read_raw, read_recording, write_recording
-from tire_model_ros.recording.play import load_schedule, select_topics
+from tire_model_ros.recording import RecordingError, read_raw, read_recording, write_recording
 from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.ros.play import load_schedule, select_topics
 
 INPUTS = ("slip", "load", "pressure", "temperature", "velocity")
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import ros_util
 
-from tire_model_ros.recording.bag import decode_topic, read_raw, read_recording, write_recording
+from tire_model_ros.recording import decode_topic, read_raw, read_recording, write_recording
 from tire_model_ros.rig import simulate_session
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -337,7 +337,7 @@ def test_track_four_wheels_with_load_transfer(model):
 
 
 def test_cli_writes_bag_and_truth_beside_it(tmp_path):
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     bag = tmp_path / "run"
     args = [
@@ -429,7 +429,7 @@ def test_model_temperature_lets_the_files_terms_act(model):
 
 @pytest.mark.parametrize("name", ["flat_trac_nominal", "flat_trac_heating_hidden", "track_4wheels"])
 def test_sample_bags_read_with_truth_beside(name):
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     bag = Path(__file__).resolve().parents[1] / "bags" / name
     truth = json.loads(truth_path(bag).read_text())

@@ -57,8 +57,8 @@ def tool(name: str) -> list[str]:
     exe = Path(sys.executable).with_name(name)
     if exe.is_file():
         return [str(exe)]
-    module = {"tire-model": "tire_model_ros.cli", "tire-model-node": "tire_model_ros.node"}[name]
-    return [sys.executable, "-m", module]
+    modules = {"tire-model": "tire_model_ros.cli", "tire-model-node": "tire_model_ros.ros.node"}
+    return [sys.executable, "-m", modules[name]]
 
 
 def _short(text: str, limit: int = 160) -> str:
@@ -71,7 +71,7 @@ def _short(text: str, limit: int = 160) -> str:
 
 
 def default_tir() -> Path:
-    from tire_model_ros.node.params import default_tir_path
+    from tire_model_ros.wheel.params import default_tir_path
 
     path = default_tir_path()
     if not path:
@@ -131,7 +131,7 @@ def step_record(tir: Path, out: Path) -> Path:
     if truth.is_file():  # keep the truth out of the diagnosis' sight, for the end of the story
         hidden.parent.mkdir(exist_ok=True)
         os.replace(truth, hidden)
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     wheels = read_recording(bag)
     for prefix, w in wheels.items():
@@ -152,7 +152,7 @@ def step_diagnose(bag: Path, tir: Path, out: Path):
     say("2 diagnose the session against the default .tir")
     from tire_model_ros.diagnosis import diagnose
     from tire_model_ros.model import TireModel, write_tir
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     wheels = read_recording(bag)
     say(
@@ -219,7 +219,7 @@ def step_report(diag, wheels, out: Path) -> None:
 
 def replay_bag(wheels: dict, out: Path) -> tuple[Path, dict]:
     """The session as recorded (no temperature), every REPLAY_EVERY-th sample."""
-    from tire_model_ros.recording.bag import write_recording
+    from tire_model_ros.recording import write_recording
 
     parts = {}
     for prefix, w in wheels.items():
@@ -328,7 +328,7 @@ def offline(model, effects, w) -> np.ndarray:
     """The node's computation for every sample of ``w``, offline: the improved model with the
     effects' hidden states stepped on the same stamps (rows Fx, Fy, Fz, Mx, My, Mz)."""
     from tire_model_ros.model.states import EffectState
-    from tire_model_ros.node.wheel import Nominal
+    from tire_model_ros.wheel.state import Nominal
 
     nom = Nominal.from_params(model.params)
     st = EffectState(effects)
@@ -355,7 +355,7 @@ def offline(model, effects, w) -> np.ndarray:
 
 def _node_forces(forces_bag: Path, prefix: str, w) -> tuple[np.ndarray, np.ndarray]:
     """(sample index into ``w``, node wrench rows) for every force message matched by stamp."""
-    from tire_model_ros.recording.bag import decode_topic, read_raw
+    from tire_model_ros.recording import decode_topic, read_raw
 
     raw = read_raw(forces_bag)
     topic = f"{prefix}/forces"

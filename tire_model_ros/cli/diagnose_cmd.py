@@ -81,7 +81,7 @@ def improved_tir(diag, source_tir):
 def run(args) -> int:
     from tire_model_ros.diagnosis import diagnose
     from tire_model_ros.model import TireModel, write_tir
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
     if bool(args.reference) != bool(args.reference_json):

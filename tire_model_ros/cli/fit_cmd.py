@@ -87,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
 
     from tire_model_ros.fit import FitOptions, fit_recording, write_fit_report
     from tire_model_ros.model import TireModel, write_tir
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     start = TireModel.from_file(args.tir)
     wheels = []

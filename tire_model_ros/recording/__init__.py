@@ -1,0 +1,41 @@
+"""Recordings (rosbag2 bags) as first-class data: read into aligned ``WheelSeries``, write back.
+
+:mod:`.read` reads bags (MCAP, sqlite3) into raw and decoded topics and aligned wheels,
+:mod:`.align` holds the one alignment rule of INTERFACE.md on stamp arrays, :mod:`.write`
+writes bags atomically, :mod:`.info` summarises one. No ROS import.
+"""
+
+from tire_model_ros.recording.align import hold_latest, latest_at_or_before, nearest
+from tire_model_ros.recording.read import (
+    Channel,
+    RawBag,
+    RawTopic,
+    RecordingError,
+    decode_topic,
+    find_wheels,
+    read_raw,
+    read_recording,
+    wheels_from_raw,
+)
+from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.recording.write import BagWriter, decimate_mask, write_recording, write_topics
+
+__all__ = [
+    "BagWriter",
+    "Channel",
+    "RawBag",
+    "RawTopic",
+    "RecordingError",
+    "WheelSeries",
+    "decimate_mask",
+    "decode_topic",
+    "find_wheels",
+    "hold_latest",
+    "latest_at_or_before",
+    "nearest",
+    "read_raw",
+    "read_recording",
+    "wheels_from_raw",
+    "write_recording",
+    "write_topics",
+]

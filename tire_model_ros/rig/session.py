@@ -480,7 +480,7 @@ def write_session(
     bag: str | Path, wheels: Sequence[WheelSeries], truth: dict, *, overwrite: bool = False
 ) -> tuple[Path, Path]:
     """Write the bag (write_recording, MCAP) and its truth file beside it, both atomically."""
-    from ..recording.bag import write_recording
+    from ..recording import write_recording
 
     bag = Path(bag)
     tpath = truth_path(bag)

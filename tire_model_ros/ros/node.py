@@ -1,9 +1,13 @@
-"""ROS 2 glue of ``tire_model_node``: topics, parameters, services, diagnostics.
+"""``tire_model_node``: streams each wheel's forces from the extended Magic Formula (ROS glue:
+topics, parameters, services, diagnostics).
+
+Console scripts ``tire-model-node`` and ``tire_model_node`` (``ros2 run tire_model_ros
+tire_model_node``), or ``python -m tire_model_ros.ros.node``.
 
 Topics per wheel prefix P (INTERFACE.md): ``P/slip``, ``P/load``, ``P/pressure``,
 ``P/temperature``, ``P/velocity`` in; ``P/forces`` out, one per slip message with its header.
-Input handling and counters: :mod:`tire_model_ros.node.wheel`. Parameter names:
-:mod:`tire_model_ros.node.params`.
+Input handling and counters (no ROS): :mod:`tire_model_ros.wheel.state`. Parameter names:
+:mod:`tire_model_ros.wheel.params`.
 
 Parameters
 ----------
@@ -79,10 +83,10 @@ from std_srvs.srv import Trigger
 
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects, EffectState
-from tire_model_ros.node import cdr_fast, realtime
-from tire_model_ros.node import params as pn
-from tire_model_ros.node.wheel import Nominal, Throttle, WheelState
-from tire_model_ros.teardown import deadline
+from tire_model_ros.ros import cdr_fast, realtime
+from tire_model_ros.ros.teardown import deadline
+from tire_model_ros.wheel import params as pn
+from tire_model_ros.wheel.state import Nominal, Throttle, WheelState
 
 NODE_NAME = "tire_model_node"
 #: Input topic -> (type, index of its float64 after the header, field for the slow path).
@@ -609,6 +613,7 @@ def tune_process(node: Node) -> None:
 
 
 def main(args: list[str] | None = None) -> int:
+    """Console entry point: run the node until SIGINT/SIGTERM; the exit status."""
     rclpy.init(args=args)
     node = None
     code = 0
@@ -634,3 +639,7 @@ def main(args: list[str] | None = None) -> int:
                 node.destroy_node()
             rclpy.try_shutdown()
     return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

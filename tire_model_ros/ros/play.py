@@ -14,13 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tire_model_ros.recording import cdr
-from tire_model_ros.recording.bag import CHANNEL_TYPES, OPTIONAL, RawBag, RecordingError, read_raw
-from tire_model_ros.recording.ros_types import msg_class
-from tire_model_ros.teardown import deadline as teardown_deadline
+from tire_model_ros.recording import RawBag, RecordingError, cdr, read_raw
+from tire_model_ros.ros.msg_types import msg_class
+from tire_model_ros.ros.teardown import deadline as teardown_deadline
+from tire_model_ros.vocabulary import CHANNEL_TYPES, NODE_INPUTS, NS_PER_S
 
-INPUTS = ("load", *OPTIONAL, "slip")  # slip last: at equal stamps the inputs come first
-_NS = 1_000_000_000
+INPUTS = (*NODE_INPUTS, "slip")  # slip last: at equal stamps the inputs come first
 
 
 @dataclass
@@ -158,7 +157,7 @@ def play(
             f"(rate {'max' if rate == 0 else rate})"
         )
         raw = [sched.raw_of(i) for i in range(len(sched))]
-        rel_s = (sched.stamp_ns - sched.stamp_ns[0]) / _NS
+        rel_s = (sched.stamp_ns - sched.stamp_ns[0]) / NS_PER_S
         t_idx = sched.topic_idx.tolist()
         while True:
             start = time.monotonic()

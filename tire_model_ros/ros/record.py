@@ -15,10 +15,10 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from tire_model_ros.recording import cdr
-from tire_model_ros.recording.bag import CHANNEL_TYPES, BagWriter
-from tire_model_ros.recording.ros_types import msg_class
-from tire_model_ros.teardown import deadline
+from tire_model_ros.recording import BagWriter, cdr
+from tire_model_ros.ros.msg_types import msg_class
+from tire_model_ros.ros.teardown import deadline
+from tire_model_ros.vocabulary import CHANNEL_TYPES, FORCES
 
 
 def resolve_topics(topics: Sequence[str] = (), wheels: Sequence[str] = ()) -> dict[str, str]:
@@ -27,7 +27,7 @@ def resolve_topics(topics: Sequence[str] = (), wheels: Sequence[str] = ()) -> di
     gives the type explicitly. A wheel prefix P records ``P/forces``."""
     out: dict[str, str] = {}
     for prefix in wheels:
-        out[f"{prefix.rstrip('/')}/forces"] = CHANNEL_TYPES["forces"]
+        out[f"{prefix.rstrip('/')}/{FORCES}"] = CHANNEL_TYPES[FORCES]
     for spec in topics:
         topic, _, msgtype = spec.partition(":")
         if not msgtype:
