@@ -22,22 +22,11 @@ from tire_model_ros.diagnosis.thermal import relaxed_slip, thermal_state_K
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects
 from tire_model_ros.rig import simulate_session
+from tire_model_ros.vocabulary import EFFECT_WORDS
 
 ROOT = Path(__file__).resolve().parents[1]
 TIR = ROOT.parent / "shared" / "reference" / "tir" / "MagicFormula61_Parameters.tir"
 TOOL = str(Path(sys.executable).parent / "tire-model")
-WORDS = {
-    "temperature",
-    "pressure",
-    "relaxation",
-    "camber",
-    "combined_slip",
-    "speed",
-    "offset",
-    "time_delay",
-    "drift",
-    "none",
-}
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +46,7 @@ def _check_json(doc: dict) -> None:
     assert set(doc) >= {"effects", "fit"}
     assert doc["effects"], "effects is never empty ('none' when nothing is found)"
     for e in doc["effects"]:
-        assert e["name"] in WORDS
+        assert e["name"] in EFFECT_WORDS
         assert isinstance(e["concealed"], bool)
         assert e["channel"] in ("Fx", "Fy", "Mz")
         assert isinstance(e["where"], str) and e["where"]

@@ -23,6 +23,7 @@ from ros_util import NodeProcess, RosClient, exited_cleanly, node_command, ros_e
 
 from tire_model_ros.model import TireModel
 from tire_model_ros.ros import realtime
+from tire_model_ros.vocabulary import NODE_INPUTS
 from tire_model_ros.wheel import params as pn
 from tire_model_ros.wheel.state import Nominal, WheelState
 
@@ -71,7 +72,7 @@ def test_wheel_state_fallbacks_and_rejections():
     nom = Nominal.from_params(model.params)
     assert (nom.Fz, nom.p, nom.T, nom.Vx) == (6752.0, 260000.0, 25.0, 16.6)
     w = WheelState("wheel", "wheel")
-    to = dict.fromkeys(pn.INPUTS, 1.0)
+    to = dict.fromkeys(NODE_INPUTS, 1.0)
     out, events = w.compute(0.1, 0.0, 0.0, 0.0, model, nom, to, True)
     assert out[2] == nom.Fz and events and events[0].startswith("fallback.load")
     assert w.set_load(math.nan, 0.0) is not None and w.load.value is None
@@ -253,7 +254,7 @@ def start_node(args, client) -> NodeProcess:
 def node1(client, tir_copy):
     proc = start_node(
         ["-r", "__node:=tire1", "-p", f"tir_file:={DEFAULT_TIR}", "-p", "diagnostics_period:=0.3"]
-        + [a for k in pn.INPUTS for a in ("-p", f"timeout.{k}:=0.0")],
+        + [a for k in NODE_INPUTS for a in ("-p", f"timeout.{k}:=0.0")],
         client,
     )
     wheel = Wheel(client, "/wheel")

@@ -73,11 +73,10 @@ SERIES_CHANNELS: Final = tuple(SERIES_UNITS)
 OPTIONAL_SERIES: Final[dict[str, str]] = {"pressure": "p", "temperature": "T", "velocity": "Vx"}
 #: ``WheelSeries`` attributes of the measured wrench, in WrenchStamped field order.
 WRENCH_SERIES: Final = ("Fx", "Fy", "Fz_meas", "Mx", "My", "Mz")
-#: Model inputs of a sample (``WheelSeries`` attributes); the last three may be absent.
+#: Model inputs of a sample (``WheelSeries`` attributes); Vx, p and T may be absent (None).
 MODEL_INPUTS: Final = ("Fz", "kappa", "alpha", "gamma", "Vx", "p", "T")
-OPTIONAL_MODEL_INPUTS: Final = ("Vx", "p", "T")
-#: Measured force and moment channels that a model is compared with (fit).
-MEASURED_CHANNELS: Final = ("Fx", "Fy", "Mx", "My", "Mz")
+#: Force and moment channels of a wheel, as the model gives them and a recording measures them.
+FORCE_CHANNELS: Final = ("Fx", "Fy", "Mx", "My", "Mz")
 #: The channels the mismatch diagnosis compares and reports, in report order.
 DIAGNOSED_CHANNELS: Final = ("Fx", "Fy", "Mz")
 

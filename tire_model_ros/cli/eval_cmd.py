@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from tire_model_ros.atomic import write_atomic
+from tire_model_ros.vocabulary import FORCE_CHANNELS
 
 HELP = "evaluate the model on a CSV of inputs"
 REQUIRED = ("Fz", "kappa", "alpha", "gamma", "Vx", "p")
 OPTIONAL = ("phit", "T")
-OUTPUTS = ("Fx", "Fy", "Mx", "My", "Mz")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         alpha_star=args.alpha_star,
     )
     columns = dict(inputs)
-    columns.update({name: getattr(out, name) for name in OUTPUTS})
+    columns.update({name: getattr(out, name) for name in FORCE_CHANNELS})
     write_csv_atomic(target, columns, overwrite=args.force)
     print(f"wrote {target}: {inputs['Fz'].size} rows")
     return 0

@@ -21,12 +21,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.vocabulary import FORCE_CHANNELS, MODEL_INPUTS
 
 from .sweeps import noise_sigma
-
-INPUTS = ("Fz", "kappa", "alpha", "gamma", "Vx", "p", "T")
-OPTIONAL_INPUTS = ("Vx", "p", "T")
-CHANNELS = ("Fx", "Fy", "Mx", "My", "Mz")
 
 # Coefficients that scale a peak, a stiffness or a shape factor: their sign must not change
 # (C > 0, D > 0 and the stiffness sign of the file), so the bounds keep them on their side.
@@ -123,7 +120,7 @@ def stack_inputs(
     lengths = [len(s) for s in series_list]
     nominal = nominal_inputs(model)
     inputs: dict[str, np.ndarray | None] = {}
-    for k in INPUTS:
+    for k in MODEL_INPUTS:
         arrays = [getattr(s, k) for s in series_list]
         if all(a is None for a in arrays):
             inputs[k] = None
@@ -140,8 +137,8 @@ def stack_inputs(
         inputs[k] = np.concatenate(_as_list(v, lengths, f"extra input {k}"))
     measured = {}
     for c in channels:
-        if c not in CHANNELS:
-            raise ValueError(f"unknown channel {c!r}; expected one of {', '.join(CHANNELS)}")
+        if c not in FORCE_CHANNELS:
+            raise ValueError(f"unknown channel {c!r}; expected one of {', '.join(FORCE_CHANNELS)}")
         measured[c] = np.concatenate(
             [
                 np.asarray(getattr(s, c), dtype=np.float64)

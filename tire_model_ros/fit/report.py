@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from ..atomic import write_atomic
-from .core import CHANNELS, evaluate_on, stack_inputs
+from ..vocabulary import FORCE_CHANNELS
+from .core import evaluate_on, stack_inputs
 
 SETS = ("fitted", "heldout")
 MIN_LEVEL_FRACTION = 0.005  # condition levels with fewer samples are left out of the tables
@@ -93,7 +94,7 @@ def fit_metrics(result) -> dict[str, Any]:
         "fitted": np.concatenate(result.train_masks),
         "heldout": np.concatenate(result.heldout_masks),
     }
-    channels = [c for c in CHANNELS if any(getattr(s, c) is not None for s in wheels)]
+    channels = [c for c in FORCE_CHANNELS if any(getattr(s, c) is not None for s in wheels)]
     measured = {c: _stack([getattr(s, c) for s in wheels], lengths) for c in channels}
     pred = {
         k: {c: np.concatenate([np.asarray(getattr(o, c)) for o in outs]) for c in channels}
@@ -251,7 +252,9 @@ def _plot_files(channels: Sequence[str]) -> list[str]:
     return [f"fit_{c}.png" for c in channels] + ["fit_sweeps.png", "fit_residual_time.png"]
 
 
-def report_paths(out_dir: str | os.PathLike, channels: Sequence[str] = CHANNELS) -> list[Path]:
+def report_paths(
+    out_dir: str | os.PathLike, channels: Sequence[str] = FORCE_CHANNELS
+) -> list[Path]:
     """Every file :func:`write_fit_report` may write in ``out_dir``."""
     d = Path(out_dir)
     return [d / n for n in (*REPORT_FILES, *_plot_files(channels))]

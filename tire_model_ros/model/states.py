@@ -24,9 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
+from tire_model_ros.vocabulary import STANDARD_ATMOSPHERE_PA
+
 FORMAT = "tire_model_ros.effects"
 VERSION = 1
-P_ATM_PA = 101325.0  # standard atmosphere [Pa], gauge -> absolute
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 
@@ -168,8 +169,8 @@ def _wheel(d: object, where: str) -> WheelEffects:
 def gas_pressure_Pa(p0_gauge_Pa, rise_K, T0_C: float):
     """Gauge pressure at constant volume after a gas-temperature rise: p_abs ~ T_abs (numbers
     or arrays; the diagnosis' gas node and the node's use this one form)."""
-    p0_abs = p0_gauge_Pa + P_ATM_PA
-    return p0_abs * (T0_C + T_ABS0_C + rise_K) / (T0_C + T_ABS0_C) - P_ATM_PA
+    p0_abs = p0_gauge_Pa + STANDARD_ATMOSPHERE_PA
+    return p0_abs * (T0_C + T_ABS0_C + rise_K) / (T0_C + T_ABS0_C) - STANDARD_ATMOSPHERE_PA
 
 
 class EffectState:

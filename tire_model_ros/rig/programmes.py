@@ -40,10 +40,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tire_model_ros.vocabulary import RIG_PREFIX
+
 DEG = math.pi / 180.0
 G_ACC = 9.81  # m/s^2
 
-RIG_PREFIX = "/rig/wheel"
 BELT_STOP = "belt stop"  # label of the pause where the belt halts between two runs
 CAR_PREFIXES = ("/car/fl", "/car/fr", "/car/rl", "/car/rr")
 

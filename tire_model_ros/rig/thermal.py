@@ -26,8 +26,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numba import njit
 
+from tire_model_ros.vocabulary import STANDARD_ATMOSPHERE_PA
+
 KELVIN = 273.15  # degC -> K
-P_ATM = 101325.0  # Pa, gauge <-> absolute
 
 
 @dataclass(frozen=True)
@@ -134,5 +135,5 @@ def gas_law_pressure(p_set_gauge: np.ndarray, Tg: np.ndarray, run: np.ndarray) -
     bounds = [*starts.tolist(), len(run)]
     for a, b in itertools.pairwise(bounds):
         T0[a:b] = Tg[a]
-    p_abs = (p_set_gauge + P_ATM) * (Tg + KELVIN) / (T0 + KELVIN)
-    return p_abs - P_ATM
+    p_abs = (p_set_gauge + STANDARD_ATMOSPHERE_PA) * (Tg + KELVIN) / (T0 + KELVIN)
+    return p_abs - STANDARD_ATMOSPHERE_PA

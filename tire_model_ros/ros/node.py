@@ -65,7 +65,7 @@ from pathlib import Path
 import rclpy
 import rclpy.exceptions
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import TwistStamped, Vector3Stamped, WrenchStamped
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
@@ -78,24 +78,36 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import FluidPressure, Temperature
 from std_srvs.srv import Trigger
 
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects, EffectState
+from tire_model_ros.recording import cdr
 from tire_model_ros.ros import cdr_fast, realtime
+from tire_model_ros.ros.msg_types import msg_class
 from tire_model_ros.ros.teardown import deadline
+from tire_model_ros.vocabulary import (
+    CHANNEL_TYPES,
+    FORCES,
+    INPUT_FIELDS,
+    NODE_INPUTS,
+    STANDARD_ATMOSPHERE_PA,
+)
 from tire_model_ros.wheel import params as pn
 from tire_model_ros.wheel.state import Nominal, Throttle, WheelState
 
 NODE_NAME = "tire_model_node"
-#: Input topic -> (type, index of its float64 after the header, field for the slow path).
-INPUT_TOPICS = {
-    "load": (WrenchStamped, 2, "wrench.force.z"),
-    "pressure": (FluidPressure, 0, "fluid_pressure"),
-    "temperature": (Temperature, 0, "temperature"),
-    "velocity": (TwistStamped, 0, "twist.linear.x"),
-}
+
+
+def _input_topic(channel: str) -> tuple[type, int, str]:
+    """(message class, index of its float64 after the header, field for the slow path)."""
+    msgtype = CHANNEL_TYPES[channel]
+    field = INPUT_FIELDS[channel]
+    return msg_class(msgtype), cdr.LAYOUTS[msgtype].index(field), field
+
+
+#: Input channel -> what the node reads from it (INTERFACE.md, :mod:`tire_model_ros.vocabulary`).
+INPUT_TOPICS = {channel: _input_topic(channel) for channel in NODE_INPUTS}
 
 
 @dataclass(frozen=True)
@@ -195,7 +207,7 @@ class TireModelNode(Node):
         )
         self.declare_parameter(
             "ambient_pressure",
-            pn.STANDARD_ATMOSPHERE_PA,
+            STANDARD_ATMOSPHERE_PA,
             _descriptor(
                 "ambient pressure [Pa] for pressure_is_absolute",
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=2e5)],
@@ -307,7 +319,7 @@ class TireModelNode(Node):
         if policy not in pn.MISSING_LOAD_POLICIES:
             raise ValueError(f"missing_load: {policy!r} is not one of {pn.MISSING_LOAD_POLICIES}")
         self.skip_without_load = policy == "skip"
-        self.timeouts = {k: float(g(f"timeout.{k}").value) for k in pn.INPUTS}
+        self.timeouts = {k: float(g(f"timeout.{k}").value) for k in NODE_INPUTS}
 
     # ---------------------------------------------------------------- parameters: change
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
@@ -440,7 +452,7 @@ class TireModelNode(Node):
             depth=depth, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST
         )
         for w in self.wheels:
-            pub = self.create_publisher(WrenchStamped, f"{w.prefix}/forces", qos)
+            pub = self.create_publisher(WrenchStamped, f"{w.prefix}/{FORCES}", qos)
             self.create_subscription(
                 Vector3Stamped, f"{w.prefix}/slip", self._slip_cb(w, pub), qos, raw=True
             )
@@ -559,7 +571,7 @@ class TireModelNode(Node):
         parts = [f"{k} +{delta[k]}" for k in lost + warn]
         st.message = "; ".join(parts) if parts else "ok"
         values = {"tir_file": self.slots[w.slot].path, **{k: str(v) for k, v in counts.items()}}
-        for name in pn.INPUTS:
+        for name in NODE_INPUTS:
             ch = getattr(w, name)
             values[f"{name}.value"] = "never received" if ch.value is None else repr(ch.value)
             values[f"{name}.age_s"] = "" if ch.value is None else f"{now - ch.t_rx:.3f}"
