@@ -10,11 +10,10 @@ import dataclasses
 import json
 import os
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MF61_TIR, ROOT, TOOL
 
 from tire_model_ros.diagnosis import Diagnosis, diagnose
 from tire_model_ros.diagnosis.core import MZ_COEFS
@@ -23,15 +22,6 @@ from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects
 from tire_model_ros.rig import simulate_session
 from tire_model_ros.vocabulary import EFFECT_WORDS
-
-ROOT = Path(__file__).resolve().parents[1]
-TIR = ROOT.parent / "shared" / "reference" / "tir" / "MagicFormula61_Parameters.tir"
-TOOL = str(Path(sys.executable).parent / "tire-model")
-
-
-@pytest.fixture(scope="module")
-def model() -> TireModel:
-    return TireModel.from_file(TIR)
 
 
 def _session(model, effects, omit=(), seed=3):
@@ -260,11 +250,11 @@ def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
     report = tmp_path / "report"
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
     cmd = [
-        TOOL,
+        *TOOL,
         "diagnose",
         str(bag),
         "--tir",
-        str(TIR),
+        str(MF61_TIR),
         "--json",
         str(out_json),
         "--report",
@@ -295,7 +285,7 @@ def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
 
 
 def test_cli_reports_a_missing_bag_clearly(tmp_path):
-    cmd = [TOOL, "diagnose", str(tmp_path / "nope"), "--tir", str(TIR)]
+    cmd = [*TOOL, "diagnose", str(tmp_path / "nope"), "--tir", str(MF61_TIR)]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
     assert res.returncode == 1
     assert "nope" in res.stderr
@@ -303,7 +293,7 @@ def test_cli_reports_a_missing_bag_clearly(tmp_path):
 
 def test_cli_refuses_a_missing_reference_before_diagnosing(tmp_path):
     out_json = tmp_path / "d.json"
-    cmd = [TOOL, "diagnose", str(ROOT / "bags" / "flat_trac_nominal"), "--tir", str(TIR),
+    cmd = [*TOOL, "diagnose", str(ROOT / "bags" / "flat_trac_nominal"), "--tir", str(MF61_TIR),
            "--json", str(out_json), "--reference", str(tmp_path / "twin"),
            "--reference-json", str(tmp_path / "clean.json")]  # fmt: skip
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)

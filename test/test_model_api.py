@@ -11,20 +11,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MF61_TIR, ROOT, TIR_DIR, TOOL, requires_reference
 
 from tire_model_ros.model import MFOutput, TireModel, read_tir
 from tire_model_ros.model import coef as c
 
-ROOT = Path(__file__).resolve().parents[1]
-TIRS = (ROOT / ".." / "shared" / "reference" / "tir").resolve()
-TIR61 = TIRS / "MagicFormula61_Parameters.tir"
-TIR52 = TIRS / "MagicFormula52_Parameters.tir"
-pytestmark = pytest.mark.skipif(not TIR61.is_file(), reason=f"{TIR61} missing")
-
-
-@pytest.fixture(scope="module")
-def model() -> TireModel:
-    return TireModel.from_file(TIR61)
+TIR52 = TIR_DIR / "MagicFormula52_Parameters.tir"
+pytestmark = requires_reference
 
 
 def _random_inputs(n: int, seed: int = 1):
@@ -188,18 +181,15 @@ def test_mf52_file_has_no_pressure_effect() -> None:
 
 
 def test_from_file_equals_constructor(model) -> None:
-    again = TireModel(read_tir(TIR61))
+    again = TireModel(read_tir(MF61_TIR))
     np.testing.assert_array_equal(again.coefficient_vector, model.coefficient_vector)
 
 
 # --- tire-model eval ------------------------------------------------------------------------
 
-CLI = ROOT / ".venv" / "bin" / "tire-model"
-
 
 def _run(*args: str) -> subprocess.CompletedProcess:
-    exe = [str(CLI)] if CLI.exists() else [sys.executable, "-m", "tire_model_ros.cli"]
-    return subprocess.run([*exe, "eval", *args], capture_output=True, text=True, timeout=240)
+    return subprocess.run([*TOOL, "eval", *args], capture_output=True, text=True, timeout=240)
 
 
 def _write_inputs(path: Path, with_T: bool) -> dict[str, np.ndarray]:
@@ -226,7 +216,7 @@ def test_eval_cli_round_trip(model, tmp_path, no_limits) -> None:
     src = tmp_path / "in.csv"
     dst = tmp_path / "out.csv"
     cols = _write_inputs(src, with_T=not no_limits)
-    res = _run("--tir", str(TIR61), str(src), "-o", str(dst), *(["--no-limits"] if no_limits
+    res = _run("--tir", str(MF61_TIR), str(src), "-o", str(dst), *(["--no-limits"] if no_limits
                                                                 else []))  # fmt: skip
     assert res.returncode == 0, res.stderr
     out = _read_csv(dst)
@@ -251,7 +241,7 @@ def test_eval_cli_variants(model, tmp_path) -> None:
     src.write_text("\n".join([lines[0] + ",phit", *rows]) + "\n")
     for flags in (["--turn-slip"], ["--alpha-star"], ["--turn-slip", "--alpha-star"]):
         dst = tmp_path / f"out{len(flags)}{flags[0]}.csv"
-        res = _run("--tir", str(TIR61), str(src), "-o", str(dst), *flags)
+        res = _run("--tir", str(MF61_TIR), str(src), "-o", str(dst), *flags)
         assert res.returncode == 0, res.stderr
         out = _read_csv(dst)
         ref = model.evaluate(cols["Fz"], cols["kappa"], cols["alpha"], cols["gamma"], cols["Vx"],
@@ -266,10 +256,10 @@ def test_eval_cli_refuses_overwrite_and_bad_rows(tmp_path) -> None:
     dst = tmp_path / "out.csv"
     _write_inputs(src, with_T=True)
     dst.write_text("keep me\n")
-    res = _run("--tir", str(TIR61), str(src), "-o", str(dst))
+    res = _run("--tir", str(MF61_TIR), str(src), "-o", str(dst))
     assert res.returncode == 1 and "--force" in res.stderr and str(dst) in res.stderr
     assert dst.read_text() == "keep me\n"
-    res = _run("--tir", str(TIR61), str(src), "-o", str(dst), "--force")
+    res = _run("--tir", str(MF61_TIR), str(src), "-o", str(dst), "--force")
     assert res.returncode == 0, res.stderr
     assert dst.read_text().startswith("Fz,")
 
@@ -279,14 +269,14 @@ def test_eval_cli_refuses_overwrite_and_bad_rows(tmp_path) -> None:
     fields[3] = "zero"  # column alpha (after the note, Fz, kappa)
     lines[3] = ",".join(fields)
     bad.write_text("\n".join(lines) + "\n")
-    res = _run("--tir", str(TIR61), str(bad), "-o", str(tmp_path / "o2.csv"))
+    res = _run("--tir", str(MF61_TIR), str(bad), "-o", str(tmp_path / "o2.csv"))
     assert res.returncode == 1
     assert "bad.csv" in res.stderr and "line 4" in res.stderr and "'alpha'" in res.stderr
     assert not (tmp_path / "o2.csv").exists()
 
     nocol = tmp_path / "nocol.csv"
     nocol.write_text("Fz,kappa,alpha\n1,0,0\n")
-    res = _run("--tir", str(TIR61), str(nocol), "-o", str(tmp_path / "o3.csv"))
+    res = _run("--tir", str(MF61_TIR), str(nocol), "-o", str(tmp_path / "o3.csv"))
     assert res.returncode == 1 and "gamma" in res.stderr and "Vx" in res.stderr
 
 

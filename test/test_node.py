@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import DEFAULT_TIR, ROOT, TIR_DIR
 from ros_util import NodeProcess, RosClient, exited_cleanly, node_command, ros_env, wait_for
 
 from tire_model_ros.model import TireModel
@@ -29,11 +30,8 @@ from tire_model_ros.wheel.state import Nominal, WheelState
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_TIR = ROOT / "config" / "default.tir"
-REF = ROOT.parent / "shared" / "reference" / "tir"
-FSAE_TIR = REF / "FSAE_Defaults.tir"
-BOOK_TIR = REF / "PacejkaBook_Defaults.tir"
+FSAE_TIR = TIR_DIR / "FSAE_Defaults.tir"
+BOOK_TIR = TIR_DIR / "PacejkaBook_Defaults.tir"
 N1 = "/tire1"
 N4 = "/tire_model_node"
 CAR = ("/car/fl", "/car/fr", "/car/rl", "/car/rr")

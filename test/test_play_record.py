@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT, TOOL
 from ros_util import exited_cleanly
 from series_util import NS, assert_same, random_wheel
 
@@ -63,9 +64,6 @@ def test_schedule_order_and_topic_choice(tmp_path):
 
 
 # ----------------------------------------------------------------------------- ROS
-
-ROOT = Path(__file__).resolve().parent.parent
-TOOL = [str(Path(sys.executable).parent / "tire-model")]
 
 
 @pytest.fixture

@@ -5,16 +5,15 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import DEFAULT_TIR
 
 from tire_model_ros.diagnosis.thermal import thermal_state_K
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects, EffectsError, EffectState, Node, WheelEffects
 
-TIR = Path(__file__).resolve().parents[1] / "config" / "default.tir"
 FULL = WheelEffects(
     T_amb_C=20.0,
     thermal=Node(3.0, 2e-3),
@@ -50,7 +49,7 @@ def test_nodes_step_as_the_diagnosis_integrates_them():
 def test_inputs_and_outputs_follow_the_effects():
     """Measured channels pass; missing ones take the hidden nodes; friction scales by the
     similarity method; offsets add, their load part in proportion to Fz / FNOMIN."""
-    model = TireModel.from_file(TIR)
+    model = TireModel.from_file(DEFAULT_TIR)
     st = EffectState(FULL)
     st.y.update(thermal=15.0, bulk=0.25, gas=8.0)
     st.t_last = 1.0
