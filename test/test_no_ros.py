@@ -75,10 +75,12 @@ def test_every_module_outside_ros_imports_without_ros(
     assert int(count) > 40 and loaded.strip() == "[]", done.stdout
 
 
+@pytest.mark.timeout(600)  # the rig's kernels may compile here first, on a loaded machine
 def test_simulate_info_and_eval_run_without_ros(no_ros_env: dict[str, str], tmp_path: Path) -> None:
     bag = tmp_path / "run"
     tir = str(DEFAULT_TIR)
-    sim = [*TOOL, "simulate", "--tir", tir, "--programme", "lateral_sweeps", "--rate", "20"]
+    programme = "lateral_sweeps:rate_scale=4"  # 100 s of session at 20 Hz
+    sim = [*TOOL, "simulate", "--tir", tir, "--programme", programme, "--rate", "20"]
     done = _run([*sim, "-o", str(bag), "--omit", "temperature"], no_ros_env, tmp_path)
     assert done.returncode == 0, done.stderr
     done = _run([*TOOL, "info", str(bag)], no_ros_env, tmp_path)
