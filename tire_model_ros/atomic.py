@@ -18,7 +18,9 @@ def _umask() -> int:
     return mask
 
 
-def write_atomic(path: str | os.PathLike, data: bytes | str, *, overwrite: bool = False) -> Path:
+def write_atomic(
+    path: str | os.PathLike[str], data: bytes | str, *, overwrite: bool = False
+) -> Path:
     """Write ``data`` to ``path`` through a temporary file in the same folder.
 
     Text is written as UTF-8 with ``\\n`` line ends. Permissions follow the umask (a temporary

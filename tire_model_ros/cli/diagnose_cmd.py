@@ -2,19 +2,26 @@
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import os
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 from tire_model_ros.atomic import write_atomic
+
+if TYPE_CHECKING:
+    from tire_model_ros.diagnosis import Diagnosis
+    from tire_model_ros.model import TireModel
+    from tire_model_ros.model.tir import TirData
 
 HELP = "locate, name and model a model/recording mismatch"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bag", help="recording: rosbag2 folder, .mcap or .db3 file")
     parser.add_argument("--tir", required=True, help="the .tir property file to diagnose")
     parser.add_argument("--json", metavar="OUT", help="write the diagnosis JSON here")
@@ -45,24 +52,26 @@ def add_arguments(parser) -> None:
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
 
 
-def _check_free(path: str | None, force: bool) -> None:
+def _check_free(path: str | os.PathLike[str] | None, force: bool) -> None:
     if path and Path(path).exists() and not force:
         raise FileExistsError(f"{path}: exists; not overwriting it (use --force)")
 
 
-def write_json_atomic(obj: dict, path: str | os.PathLike, overwrite: bool = False) -> None:
+def write_json_atomic(
+    obj: dict[str, Any], path: str | os.PathLike[str], overwrite: bool = False
+) -> None:
     """Write ``obj`` as JSON (no NaN: INTERFACE.md JSON is strict), atomically."""
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, json.dumps(obj, indent=2, allow_nan=False) + "\n", overwrite=overwrite)
 
 
-def effects_path(tir_path: str | os.PathLike) -> Path:
+def effects_path(tir_path: str | os.PathLike[str]) -> Path:
     """The effects file written beside an improved .tir: ``improved.tir`` ->
     ``improved.effects.json``."""
     return Path(tir_path).with_suffix(".effects.json")
 
 
-def improved_tir(diag, source_tir):
+def improved_tir(diag: Diagnosis, source_tir: TirData) -> TirData:
     """TirData of the improved model: fitted coefficients, effect parameters as comments."""
     notes = ["! tire-model diagnose: improved model (fitted coefficients below)."]
     for e in diag.effects:
@@ -70,15 +79,17 @@ def improved_tir(diag, source_tir):
             continue
         params = ", ".join(f"{k} = {v:.6g}" for k, v in e.parameters.items())
         notes.append(f"! effect {e.name}{' (concealed)' if e.concealed else ''}: {params}")
+    # Diagnosis types improved_model as object until the diagnosis is typed.
+    improved = cast("TireModel", diag.improved_model)
     return dataclasses.replace(
         source_tir,
         path=None,
-        params=dict(diag.improved_model.params),
+        params=dict(improved.params),
         preamble=(*source_tir.preamble, *notes),
     )
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from tire_model_ros.diagnosis import diagnose
     from tire_model_ros.model import TireModel, write_tir
     from tire_model_ros.recording import read_recording
@@ -148,12 +159,12 @@ def run(args) -> int:
         print(f"wrote {out_tir}")
         effects = diag.node_effects(Path(out_tir).name)
         write_atomic(
-            out_effects,
+            effects_path(out_tir),
             effects.to_json(),
             overwrite=args.force or bool(args.report and not args.out_tir),
         )
         print(
-            f"wrote {out_effects} (hidden states for the node's effects_file"
+            f"wrote {effects_path(out_tir)} (hidden states for the node's effects_file"
             + (f"; not carried: {'; '.join(effects.not_carried)})" if effects.not_carried else ")")
         )
     sys.stdout.flush()

@@ -61,7 +61,7 @@ def read_inputs(path: Path) -> dict[str, np.ndarray]:
         raise ValueError(f"{path}: line 1: missing column(s) {', '.join(missing)}")
     wanted = [name for name in REQUIRED + OPTIONAL if name in header]
     index = {name: header.index(name) for name in wanted}
-    data = {name: [] for name in wanted}
+    data: dict[str, list[float]] = {name: [] for name in wanted}
     for line_no, row in enumerate(rows[1:], start=2):
         if not row or all(not cell.strip() for cell in row):
             continue  # blank line

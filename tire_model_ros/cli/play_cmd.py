@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import signal
+from types import FrameType
 
 from tire_model_ros.ros import require_ros
 
@@ -49,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--queue must be >= 1, got {args.queue}")
     stop = {"flag": False}
 
-    def on_signal(signum, _frame) -> None:
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
         stop["flag"] = True
 
     for s in (signal.SIGINT, signal.SIGTERM):

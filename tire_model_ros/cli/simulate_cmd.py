@@ -32,7 +32,7 @@ def parse_spec(text: str, what: str) -> tuple[str, dict[str, str]]:
     return name, params
 
 
-def _programme_value(v: str):
+def _programme_value(v: str) -> bool | float:
     low = v.lower()
     if low in ("true", "yes", "on"):
         return True
@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     if not Path(args.tir).is_file():
         raise FileNotFoundError(f"{args.tir}: no such .tir file")
     prog, popt = parse_spec(args.programme, "--programme")
-    effects: dict = {}
+    effects: dict[str, bool | dict[str, str]] = {}
     for spec in args.effect:
         if spec.strip().endswith(":off"):
             effects[spec.strip()[: -len(":off")]] = False

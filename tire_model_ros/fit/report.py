@@ -13,13 +13,23 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..atomic import write_atomic
 from ..vocabulary import FORCE_CHANNELS
 from .core import evaluate_on, stack_inputs
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from tire_model_ros.model import MFOutput, TireModel
+    from tire_model_ros.recording.series import WheelSeries
+
+    from .stages import FitResult
+    from .sweeps import Segment
 
 SETS = ("fitted", "heldout")
 MIN_LEVEL_FRACTION = 0.005  # condition levels with fewer samples are left out of the tables
@@ -43,7 +53,7 @@ def channel_metrics(measured: np.ndarray, predicted: np.ndarray) -> dict[str, fl
     }
 
 
-def _predict(model, wheels) -> list[Any]:
+def _predict(model: TireModel, wheels: Sequence[WheelSeries]) -> list[MFOutput]:
     out = []
     for s in wheels:
         inputs, _, _ = stack_inputs(model, [s], ())
@@ -60,7 +70,7 @@ def _stack(values: Sequence[np.ndarray | None], lengths: Sequence[int]) -> np.nd
     )
 
 
-def _levels(model, wheels) -> dict[str, tuple[np.ndarray, str]]:
+def _levels(model: TireModel, wheels: Sequence[WheelSeries]) -> dict[str, tuple[np.ndarray, str]]:
     """Per sample level of each varying condition: (bin centre array, unit label)."""
     P = model.params
     fz0 = float(P["FNOMIN"])
@@ -82,7 +92,7 @@ def _levels(model, wheels) -> dict[str, tuple[np.ndarray, str]]:
     return out
 
 
-def fit_metrics(result) -> dict[str, Any]:
+def fit_metrics(result: FitResult) -> dict[str, Any]:
     """Metrics of a FitResult (fills ``result.predictions``); JSON-ready."""
     wheels = result.wheels
     lengths = [len(s) for s in wheels]
@@ -135,13 +145,13 @@ def fit_metrics(result) -> dict[str, Any]:
 # --- writing ---------------------------------------------------------------------------------
 
 
-def _fmt(x: float, digits: int = 4) -> str:
+def _fmt(x: float | None, digits: int = 4) -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
     return f"{x:.{digits}g}"
 
 
-def markdown(result) -> str:
+def markdown(result: FitResult) -> str:
     """The report as markdown text."""
     rep = result.report
     met = rep["metrics"]
@@ -253,14 +263,16 @@ def _plot_files(channels: Sequence[str]) -> list[str]:
 
 
 def report_paths(
-    out_dir: str | os.PathLike, channels: Sequence[str] = FORCE_CHANNELS
+    out_dir: str | os.PathLike[str], channels: Sequence[str] = FORCE_CHANNELS
 ) -> list[Path]:
     """Every file :func:`write_fit_report` may write in ``out_dir``."""
     d = Path(out_dir)
     return [d / n for n in (*REPORT_FILES, *_plot_files(channels))]
 
 
-def write_fit_report(result, out_dir: str | os.PathLike, *, overwrite: bool = False) -> Path:
+def write_fit_report(
+    result: FitResult, out_dir: str | os.PathLike[str], *, overwrite: bool = False
+) -> Path:
     """Write fit_report.md, fit_report.json and PNG plots into ``out_dir``; returns the md path.
 
     Raises FileExistsError (an OSError) naming the file when one exists and not ``overwrite``.
@@ -278,7 +290,7 @@ def write_fit_report(result, out_dir: str | os.PathLike, *, overwrite: bool = Fa
     return d / "fit_report.md"
 
 
-def _plots(result, d: Path) -> None:
+def _plots(result: FitResult, d: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -343,9 +355,9 @@ def _plots(result, d: Path) -> None:
     plt.close(fig)
 
 
-def _plot_sweeps(result, d: Path, channels: Sequence[str], plt) -> None:
+def _plot_sweeps(result: FitResult, d: Path, channels: Sequence[str], plt: ModuleType) -> None:
     """Force against slip on a few held-out sweeps: measured, start and fitted model."""
-    picks = []
+    picks: list[tuple[int, Segment]] = []
     for w, (_s, segs, held) in enumerate(
         zip(result.wheels, result.segments, result.heldout_masks, strict=True)
     ):
@@ -356,7 +368,7 @@ def _plot_sweeps(result, d: Path, channels: Sequence[str], plt) -> None:
                 and ("kappa" in seg.direction or "alpha" in seg.direction)
             ):
                 picks.append((w, seg))
-    chosen = {}
+    chosen: dict[str, list[tuple[int, Segment]]] = {}
     for w, seg in picks:  # one of each slip kind first
         key = "kappa" if "kappa" in seg.direction else "alpha"
         chosen.setdefault(key, []).append((w, seg))
@@ -403,7 +415,7 @@ def _plot_sweeps(result, d: Path, channels: Sequence[str], plt) -> None:
     plt.close(fig)
 
 
-def _save(fig, path: Path) -> None:
+def _save(fig: Figure, path: Path) -> None:
     """Atomic PNG write."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)

@@ -20,8 +20,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from tire_model_ros.recording.series import WheelSeries
 
@@ -75,7 +77,8 @@ def _moving_mean(x: np.ndarray, w: int) -> np.ndarray:
     half = w // 2
     lo = np.clip(np.arange(n) - half, 0, n)
     hi = np.clip(np.arange(n) + half + 1, 0, n)
-    return (c[hi] - c[lo]) / (hi - lo)
+    mean: npt.NDArray[np.float64] = (c[hi] - c[lo]) / (hi - lo)
+    return mean
 
 
 def noise_sigma(y: np.ndarray) -> float:
@@ -236,7 +239,7 @@ def split_segments(
     return segments
 
 
-def split_sweeps(series: WheelSeries, **kwargs) -> list[np.ndarray]:
+def split_sweeps(series: WheelSeries, **kwargs: Any) -> list[np.ndarray]:
     """Index arrays, one per sweep/segment, in time order (see :func:`split_segments`).
 
     Every sample belongs to exactly one array; each array is contiguous and increasing.

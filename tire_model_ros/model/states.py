@@ -21,10 +21,15 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
+import numpy.typing as npt
 
 from tire_model_ros.vocabulary import STANDARD_ATMOSPHERE_PA
+
+if TYPE_CHECKING:
+    from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
 VERSION = 1
@@ -52,8 +57,8 @@ class WheelEffects:
     offsets: dict[str, tuple[float, float]] = field(default_factory=dict)  # ch: (N, N at FNOMIN)
     speed_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (ln Vs, mu)
 
-    def to_dict(self) -> dict:
-        d: dict = {"T_amb_C": self.T_amb_C}
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"T_amb_C": self.T_amb_C}
         for name in ("thermal", "bulk", "gas"):
             node = getattr(self, name)
             if node is not None:
@@ -122,7 +127,7 @@ class Effects:
         return cls(out, str(doc.get("tir", "")), tuple(map(str, not_carried)))
 
 
-def _number(d: Mapping, key: str, where: str, lo: float = -math.inf) -> float:
+def _number(d: Mapping[str, Any], key: str, where: str, lo: float = -math.inf) -> float:
     v = d.get(key)
     if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < lo:
         raise EffectsError(f"{where}.{key}: expected a finite number >= {lo:g}, got {v!r}")
@@ -166,7 +171,17 @@ def _wheel(d: object, where: str) -> WheelEffects:
     )
 
 
-def gas_pressure_Pa(p0_gauge_Pa, rise_K, T0_C: float):
+@overload
+def gas_pressure_Pa(p0_gauge_Pa: float, rise_K: float, T0_C: float) -> float: ...
+@overload
+def gas_pressure_Pa(
+    p0_gauge_Pa: float | npt.NDArray[np.float64], rise_K: npt.NDArray[np.float64], T0_C: float
+) -> npt.NDArray[np.float64]: ...
+def gas_pressure_Pa(
+    p0_gauge_Pa: float | npt.NDArray[np.float64],
+    rise_K: float | npt.NDArray[np.float64],
+    T0_C: float,
+) -> float | npt.NDArray[np.float64]:
     """Gauge pressure at constant volume after a gas-temperature rise: p_abs ~ T_abs (numbers
     or arrays; the diagnosis' gas node and the node's use this one form)."""
     p0_abs = p0_gauge_Pa + STANDARD_ATMOSPHERE_PA
@@ -252,7 +267,8 @@ class EffectState:
             s *= 1.0 - fx.bulk_mu_loss * self.y["bulk"]
         if self._table is not None:
             Vs = abs(Vx) * math.hypot(kappa, math.tan(alpha))
-            s *= float(np.interp(math.log(max(Vs, 1e-4)), *self._table))
+            ln_Vs, mu = self._table
+            s *= float(np.interp(math.log(max(Vs, 1e-4)), ln_Vs, mu))
         s = max(s, MIN_MU_SCALE)
         if s != 1.0:
             kappa, alpha = kappa / s, math.atan(math.tan(alpha) / s)
@@ -260,7 +276,7 @@ class EffectState:
 
     def evaluate(
         self,
-        model,
+        model: TireModel,
         t_s: float,
         Fz: float,
         kappa: float,
@@ -273,7 +289,7 @@ class EffectState:
         T_nom: float,
         FNOMIN: float,
         limits: bool = True,
-    ) -> tuple[float, ...]:
+    ) -> Wrench:
         """One sample of the improved model: :meth:`inputs`, ``model.evaluate_one`` at them,
         :meth:`outputs` (Fx, Fy, Fz, Mx, My, Mz). What the node computes per slip message."""
         k, a, T, p, s = self.inputs(t_s, kappa, alpha, Vx, T_C, p_Pa, p_nom, T_nom)
@@ -286,14 +302,14 @@ class EffectState:
 
     def outputs(
         self,
-        out: tuple[float, ...],
+        out: Wrench,
         s: float,
         Fz: float,
         kappa: float,
         alpha: float,
         Vx: float,
         FNOMIN: float,
-    ) -> tuple[float, ...]:
+    ) -> Wrench:
         """(Fx, Fy, Fz, Mx, My, Mz) scaled by s (Fx, Fy, Mz), with the offsets (their load
         part in proportion to Fz / FNOMIN); its frictional power |Fx V kappa| +
         |Fy V tan(alpha)| (the slips before the similarity method) drives the next step."""

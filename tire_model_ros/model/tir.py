@@ -99,7 +99,7 @@ class TirError(ValueError):
     """A .tir file that cannot be read: the message names the file, the line and the key."""
 
     def __init__(
-        self, path: str | os.PathLike | None, line: int | None, key: str | None, reason: str
+        self, path: str | os.PathLike[str] | None, line: int | None, key: str | None, reason: str
     ):
         self.path = None if path is None else str(path)
         self.line = line
@@ -238,7 +238,7 @@ class _Parsed:
     renamed: dict[str, str] = field(default_factory=dict)
 
 
-def read_tir(path: str | os.PathLike) -> TirData:
+def read_tir(path: str | os.PathLike[str]) -> TirData:
     """Read a .tir file.
 
     Raises
@@ -569,14 +569,14 @@ def _body_lines(tir: TirData) -> dict[str, list[str]]:
         section = STRING_KEYS.get(key) or tir.extra_sections.get(key, "MODEL")
         body.setdefault(section, []).append(_line(key, _quote(value)))
     for name, spec in PARAMETERS.items():
-        value = tir.params.get(name, spec.default)
-        if _worth_writing(tir, name, value):
-            body[spec.section].append(_line(name, _format_number(value), spec.description))
-    for key, value in tir.params.items():
+        number = tir.params.get(name, spec.default)
+        if _worth_writing(tir, name, number):
+            body[spec.section].append(_line(name, _format_number(number), spec.description))
+    for key, number in tir.params.items():
         if key not in PARAMETERS and key != "FITTYP":  # FITTYP is written from tir.fittyp
             section = tir.extra_sections.get(key, "MODEL")
             body.setdefault(section, []).append(
-                _line(key, _format_number(value), "(not used by this model)")
+                _line(key, _format_number(number), "(not used by this model)")
             )
     body["TEMPERATURE_COEFFICIENTS"][:0] = _TEMPERATURE_NOTE
     return body
@@ -626,7 +626,7 @@ def tir_text(tir: TirData) -> str:
     return "\n".join(out).rstrip("\n") + "\n"
 
 
-def write_tir(tir: TirData, path: str | os.PathLike, *, overwrite: bool = False) -> None:
+def write_tir(tir: TirData, path: str | os.PathLike[str], *, overwrite: bool = False) -> None:
     """Write ``tir`` as a standard .tir file, atomically (temporary file + rename).
 
     Every coefficient is written (defaults included) with repr() precision, so reading the file

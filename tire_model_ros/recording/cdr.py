@@ -21,8 +21,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import lru_cache
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from tire_model_ros.vocabulary import (
     FLUID_PRESSURE,
@@ -65,15 +67,21 @@ class CdrError(ValueError):
         self.index = index
 
 
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+
 @lru_cache(maxsize=1)
-def typestore():
+def typestore() -> Typestore:
     """The ROS 2 Jazzy typestore of rosbags (built once; it takes ~0.1 s)."""
     from rosbags.typesys import Stores, get_typestore
 
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-def _gather_words(buf: np.ndarray, offsets: np.ndarray, count: int, dtype: str) -> np.ndarray:
+def _gather_words(
+    buf: npt.NDArray[np.uint8], offsets: npt.NDArray[np.int64], count: int, dtype: str
+) -> npt.NDArray[Any]:
     """``count`` consecutive words of ``dtype`` at each byte offset of ``buf``, (n, count).
 
     Gathers from a view of ``buf`` with a 1-byte stride (word i starts at byte i, unaligned
@@ -85,7 +93,8 @@ def _gather_words(buf: np.ndarray, offsets: np.ndarray, count: int, dtype: str) 
         return np.empty((len(offsets), count), dtype)
     window = np.ndarray((len(buf) - size + 1,), dtype, buffer=buf, strides=(1,))
     index = np.asarray(offsets, np.int64)[:, None] + size * np.arange(count, dtype=np.int64)
-    return window[index]
+    words: npt.NDArray[Any] = window[index]
+    return words
 
 
 def join(raw: Sequence[bytes | memoryview]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -164,7 +173,7 @@ def _field(msg: object, dotted: str) -> float:
 
 def decode_reference(msgtype: str, data: bytes | memoryview) -> tuple[int, np.ndarray]:
     """One message decoded with rosbags' deserialiser: (stamp [ns], fields). The reference."""
-    msg = typestore().deserialize_cdr(bytes(data), msgtype)
+    msg: Any = typestore().deserialize_cdr(bytes(data), msgtype)  # a generated dataclass
     stamp = msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec
     return stamp, np.array([_field(msg, f) for f in LAYOUTS[msgtype]])
 

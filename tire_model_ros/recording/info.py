@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 
@@ -25,7 +26,7 @@ def _range(values: np.ndarray | None) -> list[float] | None:
     return [float(finite.min()), float(finite.max())] if len(finite) else None
 
 
-def summarize(path: str | os.PathLike) -> dict:
+def summarize(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Summary of a bag; raises RecordingError when it cannot be read.
 
     Topics of the known fixed-layout types get header-stamp ranges and rates; a bag without a
@@ -36,7 +37,7 @@ def summarize(path: str | os.PathLike) -> dict:
     first, last = [], []
     for name, (msgtype, announced) in sorted(bag.all_topics.items()):
         raw = bag.topics.get(name)
-        entry: dict = {"type": msgtype, "count": len(raw) if raw is not None else 0}
+        entry: dict[str, Any] = {"type": msgtype, "count": len(raw) if raw is not None else 0}
         if announced != entry["count"]:
             entry["count_announced"] = announced
         if raw is not None and len(raw):
@@ -53,7 +54,7 @@ def summarize(path: str | os.PathLike) -> dict:
             entry["rate_hz"] = _rate_hz(times)
             entry["time_source"] = "header.stamp" if stamps is not None else "log time"
         topics[name] = entry
-    out: dict = {
+    out: dict[str, Any] = {
         "path": str(bag.path),
         "storage": bag.storage,
         "messages": bag.messages_read,
@@ -106,7 +107,7 @@ def _fmt(x: float | None, spec: str = ".6g") -> str:
     return "-" if x is None else format(x, spec)
 
 
-def format_summary(info: dict) -> str:
+def format_summary(info: dict[str, Any]) -> str:
     """Human-readable text of ``summarize``'s result."""
     lines = [
         f"bag:       {info['path']} ({info['storage']})",

@@ -23,6 +23,7 @@ import os
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,6 +31,16 @@ from tire_model_ros.recording import cdr, mcap_index
 from tire_model_ros.recording.align import align_wheel
 from tire_model_ros.recording.series import WheelSeries
 from tire_model_ros.vocabulary import CHANNEL_TYPES, OPTIONAL_CHANNELS, REQUIRED_CHANNELS
+
+if TYPE_CHECKING:
+    from rosbags.interfaces import Connection
+    from rosbags.rosbag2.storage_mcap import McapReader
+    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
+
+#: Which topics to keep: topic name -> keep it.
+Select = Callable[[str], bool]
+#: Every topic of a bag -> (message type, message count).
+TopicTable = dict[str, tuple[str, int]]
 
 
 class RecordingError(ValueError):
@@ -73,10 +84,11 @@ class RawBag:
 
 
 def storage_of(path: Path) -> str:
+    """The storage a lone file's suffix names: "sqlite3" for .db3, else "mcap"."""
     return "sqlite3" if path.suffix == ".db3" else "mcap"
 
 
-def _open_storage_file(path: Path):
+def _open_storage_file(path: Path) -> McapReader | Sqlite3Reader:
     from rosbags.rosbag2.storage_mcap import McapReader
     from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
 
@@ -88,12 +100,12 @@ def _open_storage_file(path: Path):
 class _Collector:
     """Gathers (topic, log time, bytes) from rosbags' iterators into ``RawTopic`` arrays."""
 
-    def __init__(self, select: Callable[[str], bool]) -> None:
+    def __init__(self, select: Select) -> None:
         self.select = select
         self.count = 0
-        self.parts: dict[str, tuple[str, list, list]] = {}
+        self.parts: dict[str, tuple[str, list[bytes], list[int]]] = {}
 
-    def add(self, messages: Iterable) -> None:
+    def add(self, messages: Iterable[tuple[Connection, int, bytes]]) -> None:
         for conn, log_ns, data in messages:
             self.count += 1
             if self.select(conn.topic):
@@ -108,7 +120,7 @@ class _Collector:
                 part[2].append(log_ns)
 
     def topics(self) -> dict[str, RawTopic]:
-        out = {}
+        out: dict[str, RawTopic] = {}
         for topic, (msgtype, data, log_ns) in self.parts.items():
             buf, starts, lens = cdr.join(data)
             log = np.asarray(log_ns, np.int64)
@@ -117,15 +129,17 @@ class _Collector:
         return out
 
 
-def _topic_table(connections) -> dict[str, tuple[str, int]]:
-    table: dict[str, tuple[str, int]] = {}
+def _topic_table(connections: Iterable[Connection]) -> TopicTable:
+    table: TopicTable = {}
     for c in connections:
         old = table.get(c.topic, (c.msgtype, 0))
         table[c.topic] = (c.msgtype, old[1] + c.msgcount)
     return table
 
 
-def _read_storage_file(path: Path, select) -> tuple[dict[str, RawTopic], int, int, dict]:
+def _read_storage_file(
+    path: Path, select: Select
+) -> tuple[dict[str, RawTopic], int, int, TopicTable]:
     """(topics, messages found, messages announced, topic table) of one .mcap/.db3 file."""
     if path.suffix == ".mcap":
         fast = mcap_index.read_indexed(path, select)
@@ -205,8 +219,12 @@ def _merge(parts: list[dict[str, RawTopic]]) -> dict[str, RawTopic]:
     return out
 
 
-def _read_files(files: Sequence[Path], select) -> tuple[dict[str, RawTopic], int, dict]:
-    parts, count, table = [], 0, {}
+def _read_files(
+    files: Sequence[Path], select: Select
+) -> tuple[dict[str, RawTopic], int, TopicTable]:
+    parts: list[dict[str, RawTopic]] = []
+    count = 0
+    table: TopicTable = {}
     for file in files:
         found, n, _, file_table = _read_storage_file(file, select)
         parts.append(found)
@@ -216,7 +234,7 @@ def _read_files(files: Sequence[Path], select) -> tuple[dict[str, RawTopic], int
     return _merge(parts), count, table
 
 
-def _read_dir(path: Path, select) -> RawBag:
+def _read_dir(path: Path, select: Select) -> RawBag:
     from rosbags.rosbag2 import Reader
 
     simple = _mcap_files(path)
@@ -225,15 +243,16 @@ def _read_dir(path: Path, select) -> RawBag:
         return RawBag(path, "mcap", topics, table, simple[1], count)
 
     with Reader(path) as reader:  # validates metadata.yaml (version, files, plugin)
-        plugin = type(reader.storage.storages[0]).__name__ if reader.storage.storages else ""
+        # One storage reader per file of a split bag (an attribute of rosbags' concrete class).
+        storages: list[Any] = reader.storage.storages  # type: ignore[attr-defined]
+        plugin = type(storages[0]).__name__ if storages else ""
         storage = "sqlite3" if "Sqlite" in plugin else "mcap"
         all_topics = _topic_table(reader.connections)
         announced = reader.message_count
         compressed = reader.compression_mode
-        files = [Path(s.path) for s in reader.storage.storages]
-        if storage == "mcap" and not compressed:
-            collector = None
-        else:
+        files = [Path(s.path) for s in storages]
+        collector: _Collector | None = None
+        if storage != "mcap" or compressed:
             collector = _Collector(select)
             collector.add(reader.messages())
     if collector is not None and (collector.count >= announced or compressed):
@@ -245,12 +264,12 @@ def _read_dir(path: Path, select) -> RawBag:
     return RawBag(path, storage, topics, all_topics, announced, count, collector is not None)
 
 
-def _read_file(path: Path, select) -> RawBag:
+def _read_file(path: Path, select: Select) -> RawBag:
     topics, count, announced, table = _read_storage_file(path, select)
     return RawBag(path, storage_of(path), topics, table, announced, count)
 
 
-def read_raw(path: str | os.PathLike, select: Callable[[str], bool] | None = None) -> RawBag:
+def read_raw(path: str | os.PathLike[str], select: Select | None = None) -> RawBag:
     """Undecoded messages of the topics for which ``select(topic)`` is true (all if None).
 
     Raises
@@ -353,7 +372,7 @@ def _align(bag: RawBag, prefix: str) -> WheelSeries:
 
 
 def read_recording(
-    path: str | os.PathLike, *, wheels: Sequence[str] | None = None
+    path: str | os.PathLike[str], *, wheels: Sequence[str] | None = None
 ) -> dict[str, WheelSeries]:
     """Every wheel of a recording as aligned samples (module docstring: the rules).
 

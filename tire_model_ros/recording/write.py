@@ -16,11 +16,15 @@ import shutil
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from types import TracebackType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from tire_model_ros.atomic import replace_path
 from tire_model_ros.recording import cdr
+from tire_model_ros.recording.mcap_write import Batch, write_mcap
 from tire_model_ros.recording.read import storage_of
 from tire_model_ros.recording.series import WheelSeries
 from tire_model_ros.vocabulary import (
@@ -32,6 +36,9 @@ from tire_model_ros.vocabulary import (
     VECTOR3_STAMPED,
     WRENCH_STAMPED,
 )
+
+if TYPE_CHECKING:
+    from rosbags.interfaces import Connection
 
 
 def _stamps_ns(w: WheelSeries) -> np.ndarray:
@@ -90,7 +97,7 @@ class BagWriter:
     """
 
     def __init__(
-        self, path: str | os.PathLike, *, overwrite: bool = False, storage: str = "mcap"
+        self, path: str | os.PathLike[str], *, overwrite: bool = False, storage: str = "mcap"
     ) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
@@ -108,7 +115,7 @@ class BagWriter:
         self.bag = self.tmpdir / (self.path.stem if self.lone else self.path.name)
         plugin = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}[self.storage]
         self.writer = Writer(self.bag, version=9, storage_plugin=plugin)
-        self.connections: dict[str, object] = {}
+        self.connections: dict[str, Connection] = {}
         self.counts: dict[str, int] = {}
         self.closed = False
         try:
@@ -156,7 +163,12 @@ class BagWriter:
     def __enter__(self) -> BagWriter:
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
         if exc_type is None:
             self.close()
         else:
@@ -164,7 +176,7 @@ class BagWriter:
 
 
 def write_topics(
-    path: str | os.PathLike,
+    path: str | os.PathLike[str],
     topics: Mapping[str, tuple[str, np.ndarray, np.ndarray]],
     *,
     overwrite: bool = False,
@@ -178,43 +190,39 @@ def write_topics(
     vectorised writer of ``mcap_write``; sqlite3 through rosbags.
     """
     path = Path(path)
-    names, types, stamps_of, rows_of = [], [], [], []
+    ts = cdr.typestore()
+    batches = []
     for topic, (msgtype, stamp_ns, values) in topics.items():
-        stamp_ns = np.asarray(stamp_ns, np.int64)
-        names.append(topic)
-        types.append(msgtype)
-        stamps_of.append(stamp_ns)
-        rows_of.append(cdr.encode_array(msgtype, stamp_ns, values))
-    conn_idx = np.concatenate([np.full(len(s), i) for i, s in enumerate(stamps_of)])
-    msg_idx = np.concatenate([np.arange(len(s)) for s in stamps_of])
-    stamps = np.concatenate(stamps_of)
+        stamps = np.asarray(stamp_ns, np.int64)
+        msgdef = ts.generate_msgdef(msgtype, ros_version=2)[0]
+        rows = cdr.encode_array(msgtype, stamps, values)
+        batches.append(Batch(topic, msgtype, msgdef, "[]", stamps, rows))
+    conn_idx = np.concatenate([np.full(len(b.log_ns), i) for i, b in enumerate(batches)])
+    msg_idx = np.concatenate([np.arange(len(b.log_ns)) for b in batches])
+    stamps = np.concatenate([b.log_ns for b in batches])
     prio = np.concatenate(
-        [
-            np.full(len(s), 1 if slip_last and t.endswith("/slip") else 0)
-            for t, s in zip(names, stamps_of, strict=True)
-        ]
+        [np.full(len(b.log_ns), int(slip_last and b.topic.endswith("/slip"))) for b in batches]
     )
     order = np.lexsort((conn_idx, prio, stamps))
     lone = path.suffix in (".mcap", ".db3")
     if (storage_of(path) if lone else storage) == "mcap":
-        _write_fast_mcap(
-            path, names, types, stamps_of, rows_of, (conn_idx[order], msg_idx[order]), overwrite
-        )
+        _write_fast_mcap(path, batches, (conn_idx[order], msg_idx[order]), overwrite)
         return
     with BagWriter(path, overwrite=overwrite, storage=storage) as writer:
-        for topic, msgtype in zip(names, types, strict=True):
-            writer.add_topic(topic, msgtype)
+        for b in batches:
+            writer.add_topic(b.topic, b.msgtype)
         for c, m in zip(conn_idx[order].tolist(), msg_idx[order].tolist(), strict=True):
-            writer.write(names[c], int(stamps_of[c][m]), rows_of[c][m].tobytes())
+            b = batches[c]
+            writer.write(b.topic, int(b.log_ns[m]), b.rows[m].tobytes())
 
 
-def _rosbag2_metadata(file_name: str, names, types, stamps_of) -> dict:
+def _rosbag2_metadata(file_name: str, batches: Sequence[Batch]) -> dict[str, Any]:
     """metadata.yaml content (version 9), as rosbag2 / rosbags write it."""
     ts = cdr.typestore()
-    all_stamps = [s for s in stamps_of if len(s)]
+    all_stamps = [b.log_ns for b in batches if len(b.log_ns)]
     start = int(min(s.min() for s in all_stamps)) if all_stamps else 0
     duration = int(max(s.max() for s in all_stamps)) - start if all_stamps else 0
-    count = int(sum(len(s) for s in stamps_of))
+    count = int(sum(len(b.log_ns) for b in batches))
     return {
         "version": 9,
         "storage_identifier": "mcap",
@@ -225,15 +233,15 @@ def _rosbag2_metadata(file_name: str, names, types, stamps_of) -> dict:
         "topics_with_message_count": [
             {
                 "topic_metadata": {
-                    "name": name,
-                    "type": msgtype,
+                    "name": b.topic,
+                    "type": b.msgtype,
                     "serialization_format": "cdr",
                     "offered_qos_profiles": [],
-                    "type_description_hash": ts.hash_rihs01(msgtype),
+                    "type_description_hash": ts.hash_rihs01(b.msgtype),
                 },
-                "message_count": len(s),
+                "message_count": len(b.log_ns),
             }
-            for name, msgtype, s in zip(names, types, stamps_of, strict=True)
+            for b in batches
         ],
         "compression_format": "",
         "compression_mode": "",
@@ -250,21 +258,19 @@ def _rosbag2_metadata(file_name: str, names, types, stamps_of) -> dict:
     }
 
 
-def _write_fast_mcap(path: Path, names, types, stamps_of, rows_of, order, overwrite) -> None:
+def _write_fast_mcap(
+    path: Path,
+    batches: Sequence[Batch],
+    order: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
+    overwrite: bool,
+) -> None:
     import yaml
-
-    from tire_model_ros.recording.mcap_write import Batch, write_mcap
 
     if (path.exists() or path.is_symlink()) and not overwrite:
         raise FileExistsError(f"{path}: exists already (use overwrite=True / --force)")
-    ts = cdr.typestore()
-    batches = [
-        Batch(name, msgtype, ts.generate_msgdef(msgtype, ros_version=2)[0], "[]", stamps, rows)
-        for name, msgtype, stamps, rows in zip(names, types, stamps_of, rows_of, strict=True)
-    ]
     lone = path.suffix == ".mcap"
     file_name = path.name if lone else f"{path.name}.mcap"
-    info = _rosbag2_metadata(file_name, names, types, stamps_of)
+    info = _rosbag2_metadata(file_name, batches)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
     try:
@@ -302,7 +308,7 @@ def _check_wheels(wheels: Sequence[WheelSeries]) -> None:
 
 
 def write_recording(
-    path: str | os.PathLike,
+    path: str | os.PathLike[str],
     wheels: Sequence[WheelSeries],
     *,
     overwrite: bool = False,

@@ -58,9 +58,11 @@ import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from operator import attrgetter
 from pathlib import Path
+from typing import Any
 
 import rclpy
 import rclpy.exceptions
@@ -73,9 +75,10 @@ from rcl_interfaces.msg import (
     ParameterType,
     SetParametersResult,
 )
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from std_srvs.srv import Trigger
@@ -146,14 +149,14 @@ def _fail(reason: str) -> SetParametersResult:
     return SetParametersResult(successful=False, reason=reason)
 
 
-def _descriptor(description: str, *, read_only: bool = False, **kw) -> ParameterDescriptor:
+def _descriptor(description: str, *, read_only: bool = False, **kw: Any) -> ParameterDescriptor:
     return ParameterDescriptor(description=description, read_only=read_only, **kw)
 
 
 class TireModelNode(Node):
     """Streams ``P/forces`` for every wheel prefix P; see the module docstring."""
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         self._syncing = False  # re-declaring coefficients after a file change: no rebuild
         self._redeclare: set[str] = set()
@@ -252,7 +255,9 @@ class TireModelNode(Node):
             _descriptor("CPUs the node's threads may run on; unset = all", read_only=True),
         )
 
-    def _declare_coefficients(self, slot: str, model: TireModel, overrides: bool) -> dict:
+    def _declare_coefficients(
+        self, slot: str, model: TireModel, overrides: bool
+    ) -> dict[str, float]:
         """Declare one parameter per coefficient; returns values that overrides changed."""
         prefix = f"{slot}." if slot else ""
         changed: dict[str, float] = {}
@@ -343,8 +348,8 @@ class TireModelNode(Node):
         self.slots = slots
         for w in self.wheels:
             w.slot = w.key if w.key in slots else ""
-        for name, value in settings.items():
-            setattr(self, name, value)
+        for name, setting in settings.items():
+            setattr(self, name, setting)
         if effects:
             self._set_effects(effects[-1])
             self.reloads += 1
@@ -431,7 +436,7 @@ class TireModelNode(Node):
         finally:
             self._syncing = False
 
-    def _on_reload(self, request: Trigger.Request, response: Trigger.Response):
+    def _on_reload(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         names = ["tir_file"] + [f"{k}.tir_file" for k in self.slots if k]
         if self.get_parameter("effects_file").value:
             names.append("effects_file")
@@ -461,7 +466,7 @@ class TireModelNode(Node):
                     msg_type, f"{w.prefix}/{name}", self._input_cb(w, name), qos, raw=True
                 )
 
-    def _slip_cb(self, w: WheelState, pub):
+    def _slip_cb(self, w: WheelState, pub: Publisher) -> Callable[[bytes], None]:
         def on_slip(data: bytes) -> None:
             now = time.monotonic()
             parsed = cdr_fast.read_vector(data)
@@ -492,7 +497,7 @@ class TireModelNode(Node):
 
         return on_slip
 
-    def _input_cb(self, w: WheelState, name: str):
+    def _input_cb(self, w: WheelState, name: str) -> Callable[[bytes], None]:
         msg_type, index, field = INPUT_TOPICS[name]
         setter = getattr(w, f"set_{name}")
         absolute = name == "pressure"
@@ -584,7 +589,7 @@ class TireModelNode(Node):
         return st
 
 
-def make_executor(kind: str | None = None):
+def make_executor(kind: str | None = None) -> Executor:
     """EventsExecutor (default, ~2.5x the callback rate here) or SingleThreadedExecutor.
 
     ``TIRE_MODEL_EXECUTOR=single`` selects the single-threaded one (for comparisons).
@@ -597,7 +602,7 @@ def make_executor(kind: str | None = None):
     return EventsExecutor()
 
 
-def spin(executor) -> None:
+def spin(executor: Executor) -> None:
     """Spin until the context shuts down (SIGINT/SIGTERM: rclpy's handlers shut it down).
 
     EventsExecutor.spin() does not return on that shutdown here (it keeps a core busy), so it

@@ -79,8 +79,10 @@ def schedule(bag: RawBag) -> Schedule:
         if len(raw) and (np.any(raw.lens < 12) or np.any(raw.buf[raw.starts + 1] != 1)):
             raise RecordingError(f"{bag.path}: topic {topic}: messages are not CDR_LE stamped")
         stamps = cdr.header_stamps(raw.buf, raw.starts)
-        rank = _channel_rank(topic) * 2 + (1 if topic.endswith("/slip") else 0)
-        parts.append((np.full(len(raw), i), np.arange(len(raw)), stamps, np.full(len(raw), rank)))
+        order_rank = _channel_rank(topic) * 2 + (1 if topic.endswith("/slip") else 0)
+        parts.append(
+            (np.full(len(raw), i), np.arange(len(raw)), stamps, np.full(len(raw), order_rank))
+        )
     if not parts:
         raise RecordingError(f"{bag.path}: nothing to play")
     t_idx, m_idx, stamp, rank = (np.concatenate(x) for x in zip(*parts, strict=True))
@@ -96,7 +98,7 @@ def schedule(bag: RawBag) -> Schedule:
 
 
 def load_schedule(
-    path: str | os.PathLike, wheels: Sequence[str] | None = None, measured: bool = False
+    path: str | os.PathLike[str], wheels: Sequence[str] | None = None, measured: bool = False
 ) -> Schedule:
     """Read the bag's topics to play and order them."""
     listing = read_raw(path, lambda _t: False)  # topic table only
@@ -107,7 +109,7 @@ def load_schedule(
 
 
 def play(
-    path: str | os.PathLike,
+    path: str | os.PathLike[str],
     *,
     rate: float = 1.0,
     loop: bool = False,

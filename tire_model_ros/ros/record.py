@@ -12,6 +12,7 @@ import os
 import signal
 import time
 from collections.abc import Callable, Mapping, Sequence
+from types import FrameType
 
 import numpy as np
 
@@ -55,7 +56,7 @@ def _stamp_ns(data: bytes, fallback_ns: int) -> int:
 
 
 def record(
-    out: str | os.PathLike,
+    out: str | os.PathLike[str],
     topics: Mapping[str, str],
     *,
     duration_s: float | None = None,
@@ -87,7 +88,7 @@ def record(
             raise ValueError(f"topic {topic}: {exc}") from None
     stop = {"flag": False}
 
-    def on_signal(signum, _frame) -> None:
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
         stop["flag"] = True
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
