@@ -208,10 +208,8 @@ def saturated_rows(params: Mapping[str, float], inputs: Mapping[str, Array]) -> 
         "gamma": (P["CAMMIN"], P["CAMMAX"]),
         "p": (P["PRESMIN"], P["PRESMAX"]),
     }
-    counts = {
-        name: int(np.count_nonzero((inputs[name] < lo) | (inputs[name] > hi)))
-        for name, (lo, hi) in ranges.items()
-    }
-    counts["Fz"] = int(np.count_nonzero((inputs["Fz"] < 0.0) | (inputs["Fz"] > P["FZMAX"])))
+    counts = {"Fz": int(np.count_nonzero((inputs["Fz"] < 0.0) | (inputs["Fz"] > P["FZMAX"])))}
+    for name, (lo, hi) in ranges.items():
+        counts[name] = int(np.count_nonzero((inputs[name] < lo) | (inputs[name] > hi)))
     counts["Vx (low-speed model)"] = int(np.count_nonzero(np.abs(inputs["Vx"]) <= P["VXLOW"]))
     return counts

@@ -609,11 +609,11 @@ def _needed_missing(parsed: _Parsed, version: Version) -> dict[str, list[str]]:
         if section in parsed.header_lines:
             wanted[section] = wanted.get(section, ()) + keys
     missing: dict[str, list[str]] = {}
-    for section in SECTION_ORDER:
-        for key in wanted.get(section, ()):
+    for keys in wanted.values():
+        for key in keys:
             if key not in parsed.numbers:
                 missing.setdefault(PARAMETERS[key].section, []).append(key)
-    return missing
+    return {section: missing[section] for section in SECTION_ORDER if section in missing}
 
 
 def _needer(version: Version, section: str, key: str) -> str:

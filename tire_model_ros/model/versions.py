@@ -131,7 +131,8 @@ _OPTIONAL: dict[str, tuple[str, ...]] = {
         "PDXP1 PDXP2 PDXP3 PKYP1 PDYP1 PDYP2 PDYP3 PDYP4 PHYP1 PHYP2 PHYP3 PHYP4 PECP1 PECP2 "
         "QDTP1 QCRP1 QCRP2 QBRP1 QDRP1"
     ),
-    "TEMPERATURE_COEFFICIENTS": _keys("TTX1 TTX2 TTX3 TTX4 TTY1 TTY2 TTY3 TTY4"),
+    # dT is relative to NOMTEMP: terms without their reference temperature mean nothing.
+    "TEMPERATURE_COEFFICIENTS": _keys("NOMTEMP TTX1 TTX2 TTX3 TTX4 TTY1 TTY2 TTY3 TTY4"),
 }
 
 VERSIONS: tuple[Version, ...] = (
