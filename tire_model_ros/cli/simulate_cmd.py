@@ -12,6 +12,7 @@ Example::
 from __future__ import annotations
 
 import argparse
+from collections.abc import Mapping
 from pathlib import Path
 
 from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
@@ -34,7 +35,7 @@ def parse_spec(text: str, what: str) -> tuple[str, dict[str, str]]:
     return name, params
 
 
-def _programme_value(v: str):
+def _programme_value(v: str) -> bool | float:
     low = v.lower()
     if low in ("true", "yes", "on"):
         return True
@@ -95,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     if not Path(args.tir).is_file():
         raise FileNotFoundError(f"{args.tir}: no such .tir file")
     prog, popt = parse_spec(args.programme, "--programme")
-    effects: dict = {}
+    effects: dict[str, Mapping[str, str] | bool] = {}
     for spec in args.effect:
         if spec.strip().endswith(":off"):
             effects[spec.strip()[: -len(":off")]] = False

@@ -144,8 +144,8 @@ class TirError(ValueError):
     """A .tir file that cannot be read: the message names the file, the line and the key."""
 
     def __init__(
-        self, path: str | os.PathLike | None, line: int | None, key: str | None, reason: str
-    ):
+        self, path: str | os.PathLike[str] | None, line: int | None, key: str | None, reason: str
+    ) -> None:
         self.path = None if path is None else str(path)
         self.line = line
         self.key = key
@@ -809,9 +809,9 @@ def _body_lines(tir: TirData) -> dict[str, list[str]]:
     """The key lines of every known section, in table order."""
     body: dict[str, list[str]] = {name: [] for name in SECTION_ORDER}
     header = {**_HEADER_DEFAULTS, **{k: v for k, v in tir.strings.items() if k in _HEADER_DEFAULTS}}
-    for key, value in header.items():
+    for key, text in header.items():
         body["MDI_HEADER"].append(
-            _line(key, value if _parse_number(value) is not None else _quote(value))
+            _line(key, text if _parse_number(text) is not None else _quote(text))
         )
     units = {**_SI_WRITE, **tir.units}
     body["UNITS"] = [_line(k, _quote(v)) for k, v in units.items()]
@@ -821,11 +821,11 @@ def _body_lines(tir: TirData) -> dict[str, list[str]]:
         else tir.fittyp
     )
     body["MODEL"].append(_line("FITTYP", str(fittyp), "Magic Formula version number"))
-    for key, value in tir.strings.items():
+    for key, text in tir.strings.items():
         if key in _HEADER_DEFAULTS:
             continue
         section = STRING_KEYS.get(key) or tir.extra_sections.get(key, "MODEL")
-        body.setdefault(section, []).append(_line(key, _quote(value)))
+        body.setdefault(section, []).append(_line(key, _quote(text)))
     for name, spec in PARAMETERS.items():
         value = tir.params.get(name, spec.default)
         if _worth_writing(tir, name, value):
@@ -884,7 +884,7 @@ def tir_text(tir: TirData) -> str:
     return "\n".join(out).rstrip("\n") + "\n"
 
 
-def write_tir(tir: TirData, path: str | os.PathLike, *, overwrite: bool = False) -> None:
+def write_tir(tir: TirData, path: str | os.PathLike[str], *, overwrite: bool = False) -> None:
     """Write ``tir`` as a standard .tir file, atomically (temporary file + rename).
 
     Every coefficient is written (defaults included) with repr() precision, so reading the file
