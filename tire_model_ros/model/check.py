@@ -5,9 +5,10 @@ coefficient change that does. The grid spans the ranges the file gives (loads FZ
 0, slips KPUMIN..KPUMAX, ALPMIN..ALPMAX, inclinations CAMMIN..CAMMAX, pressures
 PRESMIN..PRESMAX), speeds -LONGVL, 0, VXLOW/2, LONGVL, 3 LONGVL and temperatures NOMTEMP - 50,
 NOMTEMP, NOMTEMP + 100 degC, with the limits on (saturation, low-speed model) and off (the plain
-equations). Every output of ``evaluate(full=False)`` (what ``eval`` and the node give: forces,
-moments, slip stiffnesses, friction coefficients, trail) must be finite, and the forces and
-moments those of a tyre:
+equations); ``operating_grid`` says how. Every output of ``evaluate(full=False)`` (what ``eval``
+and the node give: forces, moments, slip stiffnesses, friction coefficients, trail) must be
+finite there, and the forces and moments those of a tyre on the ranges the file declares (at
+NOMTEMP: a .tir has no temperature range):
 
     |Fx|, |Fy| <= 10 Fz*          (a friction coefficient of 10 is no tyre)
     |Mx|, |My|, |Mz| <= 10 Fz* R0
@@ -96,8 +97,11 @@ def _span(lo: float, hi: float, n: int) -> Array:
 def operating_grid(params: Mapping[str, float]) -> dict[str, Array]:
     """The check's grid: inputs of :meth:`TireModel.evaluate` as flat arrays of one length.
 
-    Two products: loads x slips x inclinations x speeds at the nominal pressure and temperature,
-    and loads x slips x pressures x temperatures upright at LONGVL.
+    Three products: loads x slips x inclinations x speeds at the nominal pressure and
+    temperature; loads x slips x pressures, and loads x slips x temperatures, upright at LONGVL.
+    ``bounded`` is 1 where the tyre bounds apply: on the ranges the file declares. A .tir gives
+    no temperature range, so at temperatures other than NOMTEMP only finiteness is asked (the
+    temperature terms are polynomials fitted over a session's span, not beyond it).
     """
     P = params
     fz0 = P["FNOMIN"]
@@ -108,18 +112,22 @@ def operating_grid(params: Mapping[str, float]) -> dict[str, Array]:
     gamma = _span(P["CAMMIN"], P["CAMMAX"], 2)
     v0 = P["LONGVL"]
     speeds = np.array([-v0, 0.0, 0.5 * P["VXLOW"], v0, 3.0 * v0])
-    p_nom = P["INFLPRES"] if P.get("INFLPRES", 0.0) > 0.0 else P["NOMPRES"]
+    p0 = P["INFLPRES"] if P.get("INFLPRES", 0.0) > 0.0 else P["NOMPRES"]
     pressures = np.unique([P["PRESMIN"], P["NOMPRES"], P["PRESMAX"]])
     t0 = P["NOMTEMP"]
-    temperatures = np.array([t0 - 50.0, t0, t0 + 100.0])
-    first = np.meshgrid(loads, kappa, alpha, gamma, speeds, [p_nom], [t0], indexing="ij")
-    second = np.meshgrid(
-        loads, kappa[::2], alpha[::2], [0.0], [v0], pressures, temperatures, indexing="ij"
-    )
-    return {
-        name: np.concatenate([a.ravel(), b.ravel()])
-        for name, a, b in zip(_INPUTS, first, second, strict=True)
+    temperatures = np.array([t0 - 50.0, t0 + 100.0])
+    ks, als = kappa[::2], alpha[::2]
+    blocks = [
+        (np.meshgrid(loads, kappa, alpha, gamma, speeds, [p0], [t0], indexing="ij"), 1.0),
+        (np.meshgrid(loads, ks, als, [0.0], [v0], pressures, [t0], indexing="ij"), 1.0),
+        (np.meshgrid(loads, ks, als, [0.0], [v0], [p0], temperatures, indexing="ij"), 0.0),
+    ]
+    grid = {
+        name: np.concatenate([block[k].ravel() for block, _ in blocks])
+        for k, name in enumerate(_INPUTS)
     }
+    grid["bounded"] = np.concatenate([np.full(block[0].size, flag) for block, flag in blocks])
+    return grid
 
 
 def _failures(
@@ -143,7 +151,7 @@ def _failures(
         bad = ~np.isfinite(values)
         bound = bounds.get(field.name)
         if bound is not None:
-            bad |= np.abs(values) > bound
+            bad |= (grid["bounded"] > 0.0) & (np.abs(values) > bound)
         if bad.any():
             where = np.flatnonzero(bad)
             return field.name, _reason(field.name, out, where[0], bound), where
@@ -189,7 +197,7 @@ def check_model(model: TireModel) -> ModelFault | None:
         if failure is None:
             continue
         output, reason, where = failure
-        point = {k: float(v[where[0]]) for k, v in grid.items()}
+        point = {k: float(grid[k][where[0]]) for k in _INPUTS}
         point["limits"] = float(limits)
         return ModelFault(output, reason, point, _causes(model, grid, limits, where), where.size)
     return None
