@@ -91,32 +91,33 @@ def compare(cur: Score, new: Score) -> Comparison:
 MIN_SUPPORT_SHARE = 0.7  # of the held-out gain (noise units) made inside the support
 
 
-def region_gains(
+def region_sums(
     ctx: Context,
     cur: Sequence[Fit],
     new: Sequence[Fit],
     tests: Sequence[Array],
     inside: Mask,
-) -> tuple[float, float, int]:
-    """Held-out gain of ``new`` over ``cur`` in a region: the relative RMS gain there, and
-    the share of the whole gain (noise units) made there.
-
-    Returns (relative gain inside, share of the gain inside, held-out samples inside).
-    """
-    acc = np.zeros((2, 2))  # (inside, outside) x (current, new) normalised sums
-    n_in = 0
+) -> Array:
+    """Normalised held-out squared errors of ``cur`` and ``new`` inside and outside a region,
+    and the held-out samples inside: [in cur, in new, out cur - out new, n in]."""
+    acc = np.zeros(4)
     for f0, f1, rows in zip(cur, new, tests, strict=True):
         e0, e1 = errors(f0.models, f0.x, ctx, rows), errors(f1.models, f1.x, ctx, rows)
         z0 = sum((e0[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels)
         z1 = sum((e1[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels)
         m = inside[rows]
-        n_in += int(m.sum())
-        acc[0] += (float(z0[m].sum()), float(z1[m].sum()))
-        acc[1] += (float(z0[~m].sum()), float(z1[~m].sum()))
-    rel_in = 1.0 - math.sqrt(acc[0, 1] / acc[0, 0]) if acc[0, 0] > 0 else 0.0
-    whole = (acc[0, 0] + acc[1, 0]) - (acc[0, 1] + acc[1, 1])
-    share = (acc[0, 0] - acc[0, 1]) / whole if whole > 0 else 0.0
-    return rel_in, share, n_in
+        acc += (float(z0[m].sum()), float(z1[m].sum()), float(z0[~m].sum() - z1[~m].sum()), m.sum())
+    return acc
+
+
+def region_gains(acc: Array) -> tuple[float, float, int]:
+    """From :func:`region_sums` (summed over wheels): the relative RMS gain inside the region,
+    the share of the whole gain (noise units) made there, and the held-out samples inside."""
+    cur_in, new_in, gain_out, n_in = acc
+    rel_in = 1.0 - math.sqrt(new_in / cur_in) if cur_in > 0 else 0.0
+    whole = (cur_in - new_in) + gain_out
+    share = (cur_in - new_in) / whole if whole > 0 else 0.0
+    return rel_in, share, int(n_in)
 
 
 def supported(rel_in: float, share_in: float, n_in: int) -> bool:

@@ -40,7 +40,7 @@ class Score:
     n: int
     sse: dict[str, float]  # sum of squared residual per channel [N^2 or (N m)^2]
     count: dict[str, int]
-    per_block: dict[int, float] = field(default_factory=dict)  # block -> normalised sum
+    per_block: dict[tuple[str, int], float] = field(default_factory=dict)  # (wheel, block)
 
     @property
     def rms(self) -> float:
@@ -68,9 +68,14 @@ def errors(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -
 
 
 def residuals(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> Array:
-    """Stacked normalised residuals over the fitted channels."""
+    """Stacked normalised residuals over the fitted channels, and the models' penalties."""
     e = errors(models, x, ctx, rows)
-    return np.concatenate([e[ch] / ctx.sigma[ch] for ch in ctx.channels])
+    parts = [e[ch] / ctx.sigma[ch] for ch in ctx.channels]
+    i = 0
+    for m in models:
+        parts.append(m.penalty(np.asarray(x[i : i + m.n], dtype=np.float64), ctx))
+        i += m.n
+    return np.concatenate(parts)
 
 
 def bounds(models: Sequence[EffectModel]) -> tuple[Array, Array]:
@@ -166,7 +171,7 @@ def score(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) ->
         count[ch] = len(rows)
         z += (e[ch] / ctx.sigma[ch]) ** 2
     sums = np.bincount(w.block_id[rows], weights=z, minlength=len(w.blocks))
-    per_block = {int(b): float(sums[b]) for b in np.unique(w.block_id[rows])}
+    per_block = {(w.prefix, int(b)): float(sums[b]) for b in np.unique(w.block_id[rows])}
     return Score(float(z.sum()), len(rows) * len(ctx.channels), sse, count, per_block)
 
 

@@ -25,7 +25,7 @@ from .effects.static import Camber
 from .fitting import fit, residuals, uncertainty
 from .locate import channel_summary, where_text
 from .predict import coefficients, model_inputs, predict, split_x
-from .prepare import Context, make_context, prepare_wheel
+from .prepare import Context, prepare_wheel
 from .search import Selection
 
 FINAL_MAX_NFEV = 80
@@ -129,18 +129,16 @@ class WheelDiagnosis:
         return WheelEffects(**kw), not_carried
 
 
-def finish(ctx: Context, sel: Selection) -> WheelDiagnosis:
-    """Refit the chosen model on all training sweeps and report on the final held-out fold."""
-    w, log = ctx.wheel, sel.log
-    rows_ab = ctx.rows["ab"]
-    models = sel.final.models
-    x0 = np.mean([f.x for f in sel.final.fits], axis=0)
+def finish(prefix: str, sel: Selection) -> WheelDiagnosis:
+    """Refit one wheel's chosen model on all its training sweeps and report on its final
+    held-out fold."""
+    trial = sel.final.wheels[prefix]
+    ctx, log = trial.ctx, []  # this wheel's own notes (the selection's log is the recording's)
+    w, rows_ab = ctx.wheel, ctx.rows["ab"]
+    models = trial.models
+    x0 = np.mean([f.x for f in trial.fits], axis=0)
     final = fit(models, ctx, rows_ab, x0, max_nfev=FINAL_MAX_NFEV)
-    xs = [
-        m.settle(xm, ctx, rows_ab) for m, xm in zip(models, split_x(models, final.x), strict=True)
-    ]
-    final.x = np.concatenate(xs)
-    base = sel.baseline.models
+    base = sel.baseline.wheels[prefix].models
     base_fit = fit(base, ctx, rows_ab, x0[: base[0].n])
     base_m, xb = _with_mz(ctx, base, base_fit.x, log)
     imp_m, xi = _with_mz(ctx, models, final.x, log, start=(base_m, xb))
@@ -156,9 +154,10 @@ def finish(ctx: Context, sel: Selection) -> WheelDiagnosis:
         inferred.update(m.inferred(xm, ctx, inp))
     summaries = {ch: channel_summary(ctx, resid, ch) for ch in ctx.all_channels}
     sd = uncertainty(final, ev.n_eff_ratio(residuals(models, final.x, ctx, rows_ab)))
-    effects = [_effect(ctx, sel, models, final.x, sd, m) for m in sel.chosen] or [
-        _none(ctx, summaries)
-    ]
+    by_key = {(type(m).__name__, m.label): m for m in models[1:]}
+    effects = [
+        _effect(ctx, sel, models, final.x, sd, by_key[k], k) for k in sel.chosen if k in by_key
+    ] or [_none(ctx, summaries)]
     wd = WheelDiagnosis(
         prefix=w.prefix,
         effects=effects,
@@ -182,7 +181,13 @@ def finish(ctx: Context, sel: Selection) -> WheelDiagnosis:
 
 
 def _effect(
-    ctx: Context, sel: Selection, models: list[EffectModel], x: Array, sd: Array, m: EffectModel
+    ctx: Context,
+    sel: Selection,
+    models: list[EffectModel],
+    x: Array,
+    sd: Array,
+    m: EffectModel,
+    key: tuple[str, str],
 ) -> Effect:
     k = next(i for i, mm in enumerate(models) if mm is m)
     xs, sds = split_x(models, x), split_x(models, sd)
@@ -191,17 +196,18 @@ def _effect(
     ch = max(ctx.channels, key=lambda c: float(np.nanmean(delta[c] ** 2)))
     info = channel_summary(ctx, delta, ch)
     where = where_text(info, ch, f"change made by the {m.word} model") if info else ch
-    tr = sel.accepted.get(id(m))
-    explained = sel.explained.get(id(m), math.nan)
+    explained = sel.explained_per_wheel.get(key, {}).get(ctx.wheel.prefix, math.nan)
     parts = [
         f"{m.label}: explains {explained:.0%} of the baseline's held-out mean square error "
         "of Fx and Fy"
     ]
+    tr = sel.accepted.get(key)
     if tr is not None and tr.vs is not None:
         parts.append(
             f"noise-normalised held-out RMS gain {tr.vs.rel_gain:.1%} when added, better on "
             f"{tr.vs.block_fraction:.0%} of the changed held-out sweeps (sign test p = "
-            f"{tr.vs.p_sign:.2g}, t = {tr.vs.t_stat:.1f}), two-way cross-validation on whole sweeps"
+            f"{tr.vs.p_sign:.2g}, t = {tr.vs.t_stat:.1f}), two-way cross-validation on whole "
+            "sweeps"
         )
         parts += tr.notes
     shown = [f"{n} = {params[n]:.4g} +- {unc.get(n, math.nan):.2g}" for n in m.pnames[:6]]
@@ -308,18 +314,6 @@ def fit_json_pooled(items: Sequence[Any]) -> dict[str, Any]:
             if not k.startswith("heldout"):
                 out[k][ch]["nrmse"] = _num(rmse / span) if span > 0 else None
     return out
-
-
-def diagnose_wheel(series: WheelSeries, model: TireModel, seed: int = 0) -> WheelDiagnosis:
-    """Diagnose one wheel: prepare, set the noise levels, search, finish."""
-    from .effects import Scaling, candidates
-    from .search import search
-
-    rng = np.random.default_rng(seed)
-    ctx = make_context(prepare_wheel(series, model, rng), model)
-    set_noise(ctx)
-    sel = search(ctx, Scaling(ctx), candidates(ctx))
-    return finish(ctx, sel)
 
 
 def set_noise(ctx: Context) -> None:

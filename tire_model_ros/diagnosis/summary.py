@@ -1,4 +1,4 @@
-"""A recording's diagnosis: each wheel diagnosed on its own, and a summary across them."""
+"""A recording's diagnosis: the wheels searched together, each reported, and a summary."""
 
 from __future__ import annotations
 
@@ -14,14 +14,17 @@ from tire_model_ros.recording.series import WheelSeries
 
 from .effects.base import Array, Index
 from .predict import predict
+from .prepare import make_context, prepare_wheel
 from .result import (
     Effect,
     WheelDiagnosis,
-    diagnose_wheel,
+    finish,
     fit_json_pooled,
     floor,
     reference_context,
+    set_noise,
 )
+from .search import Key, Selection
 
 
 @dataclass
@@ -29,12 +32,13 @@ class Diagnosis:
     """The diagnosis of a recording: per wheel, and the effects summed up across wheels."""
 
     wheels: dict[str, WheelDiagnosis]
+    selection: Selection | None = None
     effects: list[Effect] = field(default_factory=list)
     fit: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.effects:
-            self.effects = _summary(self.wheels)
+            self.effects = _summary(self.wheels, self.selection)
         if not self.fit:
             self.fit = fit_json_pooled(list(self.wheels.values()))
 
@@ -75,7 +79,8 @@ class Diagnosis:
 
     @property
     def details(self) -> dict[str, Any]:
-        log = [f"[{p}] {line}" for p, w in self.wheels.items() for line in w.log]
+        log = list(self.selection.log) if self.selection is not None else []
+        log += [f"[{p}] {line}" for p, w in self.wheels.items() for line in w.log]
         return {
             "log": log,
             "sigma": {p: w.sigma for p, w in self.wheels.items()},
@@ -145,28 +150,40 @@ class _Scored:
 
 
 def diagnose(wheels: Sequence[WheelSeries], model: TireModel, *, seed: int = 0) -> Diagnosis:
-    """Compare ``model`` with each recorded wheel and name the physics it leaves out."""
+    """Compare ``model`` with the recorded wheels and name the physics it leaves out.
+
+    The wheels of a car are diagnosed together: each wheel gets its own parameters, the
+    evidence that an effect is there is pooled over them (:mod:`.search`).
+    """
+    from .effects import Scaling, candidates
+    from .search import search
+
     if not wheels:
         raise ValueError("no wheels to diagnose")
-    return Diagnosis({s.prefix: diagnose_wheel(s, model, seed) for s in wheels})
+    rng = np.random.default_rng(seed)
+    ctxs = [make_context(prepare_wheel(s, model, rng), model) for s in wheels]
+    for c in ctxs:
+        set_noise(c)
+    sel = search(ctxs, [Scaling(c) for c in ctxs], [candidates(c) for c in ctxs])
+    return Diagnosis({c.wheel.prefix: finish(c.wheel.prefix, sel) for c in ctxs}, sel)
 
 
-def _summary(wheels: dict[str, WheelDiagnosis]) -> list[Effect]:
-    """One effect per word found on any wheel, ordered by the share of all wheels' baseline
-    held-out mean square error it explains; a single wheel's effects as they are."""
-    if len(wheels) == 1:
+def _summary(wheels: dict[str, WheelDiagnosis], sel: Selection | None) -> list[Effect]:
+    """One effect per chosen model, strongest first (the share of all wheels' baseline
+    held-out mean square error it explains), with the wheels it acts on; a single wheel's
+    effects as they are."""
+    if len(wheels) == 1 or sel is None:
         return next(iter(wheels.values())).effects
-    base = {p: _base_mse(w) for p, w in wheels.items()}
-    total = sum(base.values()) or 1.0
     by_word: dict[str, list[tuple[str, Effect]]] = {}
     for p, w in wheels.items():
         for e in w.effects:
             if e.name != "none":
                 by_word.setdefault(e.name, []).append((p, e))
+    shares = {sel_word(sel, k): v for k, v in sel.explained.items()}
     out = []
     for word, found in by_word.items():
-        share = sum((e.explained or 0.0) * base[p] for p, e in found) / total
-        p0, e0 = max(found, key=lambda pe: (pe[1].explained or 0.0) * base[pe[0]])
+        share = shares.get(word, 0.0)
+        p0, e0 = max(found, key=lambda pe: pe[1].explained or 0.0)
         names = [p for p, _ in found]
         out.append(
             Effect(
@@ -190,16 +207,10 @@ def _summary(wheels: dict[str, WheelDiagnosis]) -> list[Effect]:
     return out
 
 
-def _base_mse(w: WheelDiagnosis) -> float:
-    """The baseline's held-out mean square error of Fx and Fy on a wheel [N^2]."""
-    ss, n = 0.0, 0
-    for ch in ("Fx", "Fy"):
-        if ch not in w.ctx.wheel.meas:
-            continue
-        e = (w.predictions[f"baseline_{ch}"] - w.ctx.wheel.meas[ch])[w.heldout_mask]
-        e = e[np.isfinite(e)]
-        ss, n = ss + float(e @ e), n + len(e)
-    return ss / n if n else 0.0
+def sel_word(sel: Selection, key: Key) -> str:
+    """The INTERFACE.md word of a chosen model."""
+    model = next(iter(sel.final.effect(key).values()))
+    return model.word
 
 
 __all__ = ["Diagnosis", "Effect", "diagnose"]

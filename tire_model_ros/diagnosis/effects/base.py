@@ -95,6 +95,12 @@ class EffectModel:
     def output(self, x: Array, ctx: Context, out: dict[str, Array], rows: Index) -> None:
         return None
 
+    def penalty(self, x: Array, ctx: Context) -> Array:
+        """Residuals (noise units) that hold the model inside its physics where bounds on its
+        parameters cannot (e.g. a grip factor that must stay positive over the temperatures
+        it is applied to); zero when it is. Added to the fit's residuals, not to scores."""
+        return np.zeros(0)
+
     def settle(self, x: Array, ctx: Context, rows: Index) -> Array:
         """``x`` with any parameter the fit's ``rows`` leave undetermined set to a neutral
         value (after the fit has converged on ``rows``)."""

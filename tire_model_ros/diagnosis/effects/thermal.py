@@ -2,10 +2,11 @@
 
 The grip of rubber has a temperature window (PHYSICS.md): it rises towards an optimum and
 falls beyond it; stiffness falls with temperature. The .tir temperature extension carries both
-through TTX1-4 / TTY1-4 (linear and quadratic in dT, INTERFACE.md), so a window is a pair of
-TT*3 / TT*4 coefficients of opposite sign. Concealed, the tread temperature is the sum of two
-lumped nodes heated by the frictional power: the tread surface (seconds) on the carcass
-(minutes), each cooling back when the power stops, plus what is left of a pre-warmed start.
+(INTERFACE.md): grip through TT*3, TT*4 (linear and quadratic in dT: a window is a pair of
+opposite sign), stiffness through TT*1 (falling; TT*2 is left as the file has it).
+Concealed, the tread temperature is the sum of two lumped nodes heated by the frictional
+power: the tread surface (seconds) on the carcass (minutes), each cooling back when the power
+stops, plus what is left of a pre-warmed start.
 """
 
 from __future__ import annotations
@@ -21,27 +22,38 @@ from ..dynamics import first_order
 from ..prepare import THERMAL_RISE_REF_K, Context
 from .base import Array, EffectModel, Param
 
-TAU_FAST_S = (0.3, 30.0)  # tread surface (PHYSICS.md: seconds)
+TAU_FAST_S = (0.3, 60.0)  # tread surface (PHYSICS.md: seconds)
 TAU_SLOW_S = (30.0, 900.0)  # carcass (PHYSICS.md: 1-5 min; up to 15 for a big tyre)
-TT_SPAN = 3.0  # bound of a TT coefficient change (dT is about 1 over the convention's rise)
+TT_SPAN = 2.0  # bound of a TT coefficient change (dT is about 1 over the convention's rise)
+# A temperature law keeps each factor (stiffness: 1 + TT*1 dT + TT*2 dT^2, grip: TT*3, TT*4)
+# within these over the temperatures it is applied to (PHYSICS.md: grip -10 % per +10 degC at
+# most, stiffness larger cold): beyond, a fitted quadratic is extrapolating, not physics.
+FACTOR_RANGE = (0.5, 1.5)
+PENALTY_WEIGHT = 300.0  # noise units per unit of factor outside its range
 RECORDED_T_MIN_STD_K = 0.5  # a recorded temperature that moves less tells nothing
 
 
 def _tt_names(ctx: Context) -> list[str]:
-    """TTX1-4 where slip ratio is swept, TTY1-4 where slip angle is."""
+    """Stiffness TT*1 and grip TT*3, TT*4 (TTX where slip ratio is swept, TTY where slip
+    angle is): stiffness falls with temperature (PHYSICS.md: monotonically, so linear and
+    TT*2 left as the file has it), grip has a window (a quadratic)."""
     out = []
     for axis, key in (("X", "x"), ("Y", "y")):
         if ctx.informative[key]:
-            out += [f"TT{axis}{i}" for i in (1, 2, 3, 4)]
+            out += [f"TT{axis}{i}" for i in (1, 3, 4)]
     return out
 
 
 def _tt_params(ctx: Context) -> list[Param]:
-    return [Param(k, 0.0, -TT_SPAN, TT_SPAN, 0.1) for k in _tt_names(ctx)]
+    """The changes of the TT coefficients; a stiffness term may only make stiffness fall."""
+    return [
+        Param(k, 0.0, -TT_SPAN, 0.0 if k.endswith("1") else TT_SPAN, 0.1) for k in _tt_names(ctx)
+    ]
 
 
 class _TTModel(EffectModel):
-    """Shared: the TT coefficients are the last parameters, additive to the file's."""
+    """Shared: the TT coefficients are the last parameters, additive to the file's, and the
+    factors they make stay physical over the model's temperatures."""
 
     word = "temperature"
 
@@ -51,6 +63,24 @@ class _TTModel(EffectModel):
             k: ctx.base.get(k, 0.0) + float(v)
             for k, v in zip(self.pnames[k0:], x[k0:], strict=True)
         }
+
+    def temperature(self, x: Array, ctx: Context) -> Array:
+        raise NotImplementedError
+
+    def penalty(self, x: Array, ctx: Context) -> Array:
+        T = self.temperature(x, ctx)
+        dT = (np.linspace(float(T.min()), float(T.max()), 9) - ctx.T_amb) / max(ctx.T_amb, 1e-6)
+        c = self.coef(x, ctx)
+        out = []
+        for axis in ("X", "Y"):
+            for lin, quad in ((1, 2), (3, 4)):
+                a, b = c.get(f"TT{axis}{lin}"), c.get(f"TT{axis}{quad}")
+                if a is None or b is None:
+                    continue
+                f = 1.0 + a * dT + b * dT**2
+                lo, hi = FACTOR_RANGE
+                out.append(np.maximum(lo - f, 0.0) + np.maximum(f - hi, 0.0))
+        return PENALTY_WEIGHT * np.concatenate(out) if out else np.zeros(0)
 
 
 class HiddenThermal(_TTModel):
@@ -76,8 +106,8 @@ class HiddenThermal(_TTModel):
         nodes = [
             Param("tau_fast_s", 3.0, *TAU_FAST_S, 3.0),
             Param("tau_slow_s", 150.0, *TAU_SLOW_S, 80.0),
-            Param("slow_share", 1.0, 0.0, 4.0, 0.3),
-            Param("T0_K", 0.0, -40.0, 120.0, 10.0),
+            Param("slow_share", 1.0, 0.0, 20.0, 0.5),
+            Param("T0_K", 0.0, 0.0, 60.0, 10.0),  # a pre-warmed start (0: at ambient)
         ]
         head = nodes if mode in ("physical", "scrambled") else []
         starts = [
@@ -158,11 +188,15 @@ class RecordedThermal(_TTModel):
     def controls(self, ctx: Context) -> list[EffectModel]:
         return [RecordedThermal(ctx, m) for m in ("scrambled", "trend")]
 
-    def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+    def temperature(self, x: Array, ctx: Context) -> Array:
         T = ctx.wheel.inputs["T"]
         assert T is not None
         if self.mode == "scrambled":
-            inp["T"] = T[ctx.wheel.scramble]
-        elif self.mode == "trend":
+            return T[ctx.wheel.scramble]
+        if self.mode == "trend":
             lo, hi = np.percentile(T, [5, 95])
-            inp["T"] = lo + (hi - lo) * ctx.wheel.t / ctx.t_end
+            return lo + (hi - lo) * ctx.wheel.t / ctx.t_end
+        return T
+
+    def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+        inp["T"] = self.temperature(x, ctx)
