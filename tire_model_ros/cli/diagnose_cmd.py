@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from tire_model_ros.atomic import write_atomic
+from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
 
 if TYPE_CHECKING:
     from tire_model_ros.diagnosis import Diagnosis, WheelDiagnosis
@@ -49,6 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the sweep folds (default 0)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    add_lenient_argument(parser)
 
 
 def _check_free(path: str | os.PathLike[str] | None, force: bool) -> None:
@@ -115,7 +117,7 @@ def node_params(diag: Diagnosis, tirs: dict[str, Path], effects: Path) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from tire_model_ros.diagnosis import diagnose
-    from tire_model_ros.model import TireModel, write_tir
+    from tire_model_ros.model import write_tir
     from tire_model_ros.recording import read_recording
 
     out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
@@ -133,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         and not args.force
     ):
         raise FileExistsError(f"{args.report}: exists and is not empty (use --force)")
-    model = TireModel.from_file(args.tir)
+    model = load_model(args.tir, args.lenient)
     wheels = read_recording(args.bag, wheels=args.wheel)
     t0 = time.perf_counter()
     diag = diagnose(list(wheels.values()), model, seed=args.seed)

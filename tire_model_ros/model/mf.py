@@ -108,11 +108,14 @@ class TireModel:
         self._p_nom = _pressure_nominal(params)
 
     @classmethod
-    def from_file(cls, path: str | os.PathLike[str]) -> TireModel:
-        """Read a .tir file (``read_tir``) and build the model."""
+    def from_file(cls, path: str | os.PathLike[str], *, lenient: bool = False) -> TireModel:
+        """Read a .tir file (``read_tir``, with its ``lenient``) and build the model.
+
+        With ``lenient``, ``model.tir.notes`` lists what was let through and filled.
+        """
         from .tir import read_tir
 
-        return cls(read_tir(path))
+        return cls(read_tir(path, lenient=lenient))
 
     @property
     def tir(self) -> TirData:
