@@ -133,6 +133,14 @@ def test_one_absurd_sample_leaves_no_trace_and_the_states_stay_bounded():
     driven, st_driven = run(True, True)
     assert np.all(np.isfinite(driven)) and all(abs(y) <= MAX_RISE_K for y in st_driven.y.values())
     assert st_driven.temperature_C < 25.0 + 2 * MAX_RISE_K
+    lag = EffectState(WheelEffects(T_lag_s=2.0))  # a measured temperature through its lag
+    ref = EffectState(WheelEffects(T_lag_s=2.0))
+    for i in range(30):
+        if i == 15:  # 500 degC once, between two samples, not driving: no trace in the lag
+            lag.inputs(i - 0.5, 0.1, 0.0, 10.0, 500.0, None, 2.6e5, 25.0, drive=False)
+        T = lag.inputs(float(i), 0.1, 0.0, 10.0, 30.0 + i, None, 2.6e5, 25.0)[2]
+        T_ref = ref.inputs(float(i), 0.1, 0.0, 10.0, 30.0 + i, None, 2.6e5, 25.0)[2]
+        assert abs(T - T_ref) <= 1e-12 * abs(T_ref)
     st = EffectState(fx)  # a power of 1e300 W: bounded drive, bounded states
     for i in range(50):
         st.inputs(float(i), 0.1, 0.0, 10.0, None, None, 2.6e5, 25.0)

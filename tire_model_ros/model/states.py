@@ -297,15 +297,17 @@ class EffectState:
             a = math.exp(-dt / node.tau_s)
             self.y[name] = _bounded(a * self.y[name] + (1.0 - a) * u)
 
-    def _lagged(self, T_C: float, dt: float) -> float:
+    def _lagged(self, T_C: float, dt: float, drive: bool = True) -> float:
         """The measured temperature through the first-order lag T_lag_s (the value held over
-        the step, as the diagnosis integrates it)."""
+        the step, as the diagnosis integrates it); ``drive`` False: ``T_C`` is not held over
+        the next step (the one held from before is)."""
         if self.T_seen is None or self.T_last is None:
             self.T_seen = T_C
         else:
             a = math.exp(-dt / self.fx.T_lag_s)
             self.T_seen = a * self.T_seen + (1.0 - a) * self.T_last
-        self.T_last = T_C
+        if drive or self.T_last is None:
+            self.T_last = T_C
         return self.T_seen
 
     def idle(self, t_s: float) -> None:
@@ -329,19 +331,21 @@ class EffectState:
         p_nom: float,
         T_nom: float,
         Fz_over_FNOMIN: float = 1.0,
+        drive: bool = True,
     ) -> tuple[float, float, float, float, float]:
         """(kappa, alpha, T, p, s) for the model at ``t_s`` [s]; s is the friction scale.
 
         A temperature ``T_C`` [degC] or gauge pressure ``p_Pa`` that is None (not measured)
         takes the hidden thermal nodes, or the gas law on ``p_nom`` with the hidden gas node;
-        the nominal value when the effects have no such node.
+        the nominal value when the effects have no such node. ``drive`` as in :meth:`outputs`
+        (a measured temperature of a sample that does not drive is not held by the lag).
         """
         dt = 0.0 if self.t_last is None else max(t_s - self.t_last, 0.0)
         self._step(t_s)
         fx = self.fx
         T = T_C
         if T is not None and fx.T_lag_s > 0.0:
-            T = self._lagged(T, dt)
+            T = self._lagged(T, dt, drive)
         if T is None:
             T = self.temperature_C if fx.thermal is not None else T_nom
         p = p_Pa
@@ -382,7 +386,7 @@ class EffectState:
         :meth:`outputs` (Fx, Fy, Fz, Mx, My, Mz). What the node computes per slip message;
         ``drive`` as in :meth:`outputs`."""
         load = Fz / FNOMIN if FNOMIN > 0 else 0.0
-        k, a, T, p, s = self.inputs(t_s, kappa, alpha, Vx, T_C, p_Pa, p_nom, T_nom, load)
+        k, a, T, p, s = self.inputs(t_s, kappa, alpha, Vx, T_C, p_Pa, p_nom, T_nom, load, drive)
         out = model.evaluate_one(Fz, k, a, gamma, Vx, p, T, limits=limits)
         return self.outputs(out, s, Fz, kappa, alpha, Vx, FNOMIN, drive)
 
