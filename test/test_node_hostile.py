@@ -20,10 +20,11 @@ import pytest
 from conftest import DEFAULT_TIR
 from ros_util import NodeProcess, RosClient, exited_cleanly, node_command, ros_env, wait_for
 
+from tire_model_ros.delivery import NODE, parse_reports
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects, EffectState, Node, WheelEffects
 from tire_model_ros.vocabulary import NODE_INPUTS
-from tire_model_ros.wheel.state import Nominal, parse_final_lines
+from tire_model_ros.wheel.state import Nominal
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(240)]
 
@@ -589,5 +590,5 @@ def test_managed_node_through_its_transitions(client, model, tmp_path):
     finally:
         rc, log = proc.stop()
     assert exited_cleanly(rc, log) and "Traceback" not in log, log
-    final = parse_final_lines(log)["/lc"]
+    final = parse_reports(log, NODE)["/lc"]
     assert final["slip_inactive"] >= 10 and final["forces_out"] >= 1

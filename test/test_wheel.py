@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from conftest import DEFAULT_TIR
 
+from tire_model_ros.delivery import NODE, parse_reports
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import EffectState, Node, WheelEffects
 from tire_model_ros.recording.align import hold_latest, latest_at_or_before
@@ -20,7 +21,6 @@ from tire_model_ros.wheel.state import (
     WheelModel,
     WheelState,
     final_line,
-    parse_final_lines,
 )
 
 S = NS_PER_S
@@ -166,7 +166,7 @@ def test_every_slip_is_answered_or_counted(wm):
     assert (c["slip_malformed"], c["slip_inactive"], c["slip_rejected"]) == (1, 1, 1)
     assert (c["skipped_no_load"], c["no_contact"], c["load.malformed"]) == (1, 1, 1)
     assert c["load.rejected"] == c["pressure.rejected"] == c["temperature.rejected"] == 1
-    assert parse_final_lines("x\n" + final_line("/w", c) + "\n") == {"/w": c}
+    assert parse_reports("x\n" + final_line("/w", c) + "\n", NODE) == {"/w": c}
 
 
 def test_an_absurd_slip_leaves_the_hidden_states_untouched(wm):

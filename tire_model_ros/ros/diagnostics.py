@@ -20,8 +20,9 @@ from collections.abc import Mapping
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
+from tire_model_ros.delivery import UNANSWERED
 from tire_model_ros.vocabulary import NODE_INPUTS
-from tire_model_ros.wheel.state import UNANSWERED, WheelState
+from tire_model_ros.wheel.state import WheelState
 
 
 def _is_warning(key: str) -> bool:

@@ -34,12 +34,12 @@ counted under one of :data:`UNANSWERED`: ``slip_in == forces_out + sum(UNANSWERE
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from tire_model_ros.delivery import NODE, UNANSWERED, report_line
 from tire_model_ros.model.states import EffectState
 from tire_model_ros.vocabulary import NODE_INPUTS, NS_PER_S
 from tire_model_ros.wheel.history import STATES, StampedHistory
@@ -50,16 +50,6 @@ if TYPE_CHECKING:
     from tire_model_ros.model.mf import Wrench
 
 ABSOLUTE_ZERO_DEGC = -273.15
-#: Why a slip message got no answer; each is a counter.
-UNANSWERED = (
-    "slip_malformed",
-    "slip_rejected",
-    "skipped_no_load",
-    "output_nonfinite",
-    "model_errors",
-    "slip_inactive",
-)
-FINAL_COUNTS = "final counts"
 ZERO_WRENCH = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _LOWEST = {"load": -math.inf, "pressure": 0.0, "temperature": ABSOLUTE_ZERO_DEGC}
 _WHAT = {
@@ -316,16 +306,5 @@ class WheelState:
 
 
 def final_line(prefix: str, counts: Mapping[str, int]) -> str:
-    """The node's last word on a wheel (logged at shutdown): every counter, as JSON."""
-    return f"{FINAL_COUNTS} {prefix} {json.dumps(dict(counts), sort_keys=True)}"
-
-
-def parse_final_lines(text: str) -> dict[str, dict[str, int]]:
-    """Wheel prefix -> counters, from the :func:`final_line` lines of a node's log."""
-    out: dict[str, dict[str, int]] = {}
-    for line in text.splitlines():
-        _, sep, rest = line.partition(FINAL_COUNTS + " ")
-        if sep:
-            prefix, _, doc = rest.partition(" ")
-            out[prefix] = {str(k): int(v) for k, v in json.loads(doc).items()}
-    return out
+    """The node's last word on a wheel (printed at exit): every counter (:mod:`..delivery`)."""
+    return report_line(NODE, prefix, counts)
