@@ -190,3 +190,24 @@ def test_an_absurd_slip_leaves_the_hidden_states_untouched(wm):
     np.testing.assert_allclose(runs[1][0], runs[0][0], rtol=1e-12, atol=1e-9)
     assert runs[1][1].out_of_range["kappa"] == 1 and runs[0][1].out_of_range["kappa"] == 0
     assert runs[1][1].effects.y == pytest.approx(runs[0][1].effects.y, rel=1e-12)
+
+
+def test_first_start_notice_when_loading_the_kernels_takes_long():
+    """The node's start says what is happening when the kernels are not ready: quiet on a warm
+    cache; the notice, then the time taken, when loading takes longer than the threshold (here
+    a real numba compile of a small function against a zero threshold)."""
+    from numba import njit
+
+    from tire_model_ros.model.startup import COMPILE_NOTICE, cache_present, warm_up_announced
+
+    assert cache_present()  # make venv compiled them
+    quiet: list[str] = []
+    warm_up_announced(quiet.append, notice_after_s=60.0)
+    assert quiet == []
+    said: list[str] = []
+
+    def compile_one() -> float:
+        return float(njit(cache=False)(lambda x: math.sin(x) * 2.0)(1.0))
+
+    warm_up_announced(said.append, notice_after_s=0.0, load=compile_one)
+    assert said[0] == COMPILE_NOTICE and said[1].startswith("kernels ready after")

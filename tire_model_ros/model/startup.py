@@ -23,15 +23,19 @@ COMPILE_NOTICE = (
 
 
 def warm_up_announced(
-    log: Callable[[str], None] = print, notice_after_s: float = NOTICE_AFTER_S
+    log: Callable[[str], None] = print,
+    notice_after_s: float = NOTICE_AFTER_S,
+    load: Callable[[], object] | None = None,
 ) -> float:
-    """Load or compile the kernels (``warm_up``); seconds taken.
+    """Load or compile the kernels (``load``, default ``kernel.warm_up``); seconds taken.
 
     ``log`` gets :data:`COMPILE_NOTICE` at once when numba's cache has no kernels, else when the
     load takes longer than ``notice_after_s``; and then a line with the time taken at the end.
     """
-    from tire_model_ros.model.kernel import warm_up
+    if load is None:
+        from tire_model_ros.model.kernel import warm_up
 
+        load = warm_up
     start = time.monotonic()
     said: list[str] = []
 
@@ -43,7 +47,7 @@ def warm_up_announced(
     timer.daemon = True
     timer.start()
     try:
-        warm_up()
+        load()
     finally:
         timer.cancel()
     took = time.monotonic() - start
