@@ -10,6 +10,7 @@ Layout (data flows one way: recording -> aligned arrays -> model/fit/diagnosis -
 - ``wheel``      the node's per-wheel logic and parameter table, without ROS
 - ``cli``        the ``tire-model`` command and its subcommands
 - ``vocabulary`` the shared words of INTERFACE.md: topics, message types, channels, effects
+- ``delivery``   what play, the node and record did not deliver: their reports, the account
 - ``ros``        everything that needs ROS 2 (rclpy): the node, play, record; nothing outside
   this folder imports ROS, so the offline tool runs from a plain ``pip install``
 """
