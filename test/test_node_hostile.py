@@ -256,6 +256,38 @@ def test_best_effort_publishers_are_served(client, hostile):
     wait_for(lambda: answered(4100.0, reliable), 30, "a reliable load as well", interval=0.1)
 
 
+def test_subscribing_again_mid_stream_loses_and_repeats_nothing(client):
+    """A reliable slip stream at ~500 Hz; a best-effort publisher appears in its middle: the
+    node subscribes again, and every reliable slip is answered exactly once."""
+    from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+    from rclpy.qos import qos_profile_sensor_data
+
+    proc = start(client, "tire_ho", "wheels:=['/ho']", "qos_depth:=2000")
+    slip = client.publisher(Vector3Stamped, "/ho/slip", depth=2000)  # no load: FNOMIN
+    forces = Box(client, WrenchStamped, "/ho/forces", RosClient.qos(2000))
+    client.wait_matched([slip], 90, proc)
+    proc.wait_log("/ho/forces: 1 subscriber(s) matched", 30)
+    sent: list[int] = []
+    for k in range(1500):
+        if k == 500:  # mid-stream, as a simulator's sensor would start
+            client.node.create_publisher(Vector3Stamped, "/ho/slip", qos_profile_sensor_data)
+        m = Vector3Stamped()
+        m.vector.x = 0.05
+        sent.append(k * 1_000_000 + S)
+        slip.publish(stamped(m, sent[-1]))
+        time.sleep(0.002)  # pacing of the stream, not a wait on an event
+    wait_for(lambda: len(forces.items) >= len(sent), 60, "an answer to every slip")
+    proc.wait_log("subscribed again", 30)
+    time.sleep(0.5)  # a duplicate would arrive right behind the last answer
+    with forces.lock:
+        got = [stamp_of(m) for m in forces.items]
+    _, log = proc.stop()
+    assert sorted(got) == sent  # none lost, none twice
+    handover = [line for line in log.splitlines() if "subscribed again" in line]
+    assert len(handover) == 1 and "every publisher matched" in handover[0], log
+    print(handover[0])
+
+
 MALFORMED = textwrap.dedent(
     """
     import sys, time

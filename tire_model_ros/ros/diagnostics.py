@@ -6,7 +6,8 @@ Per wheel, per period (the counters' increase since the last report):
 - WARN: slip messages unanswered (any reason of ``UNANSWERED``), inputs out of range
   (saturated with the limits on, used as they are with them off), messages that could not be
   read or values rejected, inputs missing for a slip (stale, stamped after it, or a load never
-  received), or input topics that had to be subscribed again.
+  received), or an input topic subscribed again whose handover ended before every publisher
+  was matched (``resubscribe_unmatched``; a lossless handover is counted, not a warning).
 - OK, message "ok": none of these: every output is the model on in-range inputs.
 
 The message lists what happened with its count (``out_of_range.temperature +12 (saturated)``);
@@ -30,7 +31,7 @@ def _is_warning(key: str) -> bool:
         return True
     if key.startswith("fallback."):
         return not key.endswith(".never") or key == "fallback.load.never"
-    return key == "resubscribed"
+    return key == "resubscribe_unmatched"  # a handover that may have lost messages
 
 
 def level_and_message(

@@ -566,9 +566,9 @@ class TireModelCore(Node):
         arr.status.append(self._model_status())
         for w in self.wheels:
             counts = w.counters()
-            counts["resubscribed"] = sum(
-                s.resubscribed for s in self._own_subs if s.topic.startswith(w.prefix + "/")
-            )
+            own = [s for s in self._own_subs if s.topic.startswith(w.prefix + "/")]
+            counts["resubscribed"] = sum(s.resubscribed for s in own)
+            counts["resubscribe_unmatched"] = sum(s.unmatched for s in own)
             last = self._diag_last.get(w.key, {})
             delta = {k: v - last.get(k, 0) for k, v in counts.items()}
             self._diag_last[w.key] = counts

@@ -8,8 +8,11 @@ Inputs (``input_reliability``):
   yet"). rmw does not resolve it again, so a best-effort publisher (sensor-data QoS, the usual
   choice of a simulator) that appears later would be refused as incompatible. The node listens
   for that event and subscribes again, which then resolves to BEST_EFFORT and serves both
-  kinds. Messages still queued in the old subscription at that moment are lost (once per topic,
-  when the first best-effort publisher appears; counted in ``resubscribed`` on /diagnostics).
+  kinds. The handover loses nothing: the old subscription stays until the new one is matched
+  with every publisher of the topic (at most ``HANDOVER_S``), a message that reached both is
+  delivered once (same bytes), and what is still queued in the old one is taken before it goes.
+  ``resubscribed`` on /diagnostics counts the handovers, ``resubscribe_unmatched`` those that
+  ended on the time bound with a publisher not yet matched (a possible loss: a warning).
 - ``reliable``: only reliable publishers are served (an incompatible one is logged).
 - ``best_effort``: every publisher is served, none reliably.
 
@@ -24,6 +27,7 @@ Output (``output_reliability``): ``reliable`` (default) or ``best_effort``, hist
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -36,7 +40,7 @@ from rclpy.event_handler import (
     SubscriptionEventCallbacks,
 )
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 
 INPUT_RELIABILITY = {
@@ -89,9 +93,32 @@ class TopicQoS:
         )
 
 
+HANDOVER_S = 2.0  # bound on waiting for the new subscription's matches (steady time)
+POLL_S = 0.005  # how often the handover checks them
+
+
+class Handover:
+    """Two subscriptions on one topic for a moment: a message that reached both (the same
+    bytes) is delivered once."""
+
+    def __init__(self) -> None:
+        self.pending: dict[str, Counter[bytes]] = {"old": Counter(), "new": Counter()}
+        self.duplicates = 0
+
+    def first(self, side: str, data: bytes) -> bool:
+        """True if ``data`` from ``side`` ("old" or "new") has not come from the other side."""
+        other = self.pending["new" if side == "old" else "old"]
+        if other[data]:
+            other[data] -= 1
+            self.duplicates += 1
+            return False
+        self.pending[side][data] += 1
+        return True
+
+
 class InputSubscription:
-    """One input topic's subscription, subscribed again when a publisher it cannot serve
-    appears and the reliability is ``best_available`` (module docstring)."""
+    """One input topic's subscription, subscribed again without loss when a publisher it
+    cannot serve appears and the reliability is ``best_available`` (module docstring)."""
 
     def __init__(
         self,
@@ -107,45 +134,93 @@ class InputSubscription:
         self.callback = callback
         self.qos = qos
         self.resubscribed = 0
+        self.unmatched = 0
         self.incompatible = 0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)  # not paused with sim time
         self._timer: Any = None
-        self.sub: Subscription | None = None
-        self._subscribe()
+        self._handover: Handover | None = None
+        self._deadline_ns = 0
+        self._old: Subscription | None = None
+        self.sub: Subscription | None = self._subscribe(callback)
 
-    def _subscribe(self) -> None:
+    def _subscribe(self, callback: Callable[[bytes], None]) -> Subscription:
         events = SubscriptionEventCallbacks(incompatible_qos=self._on_incompatible)
-        self.sub = self.node.create_subscription(
-            self.msg_type, self.topic, self.callback, self.qos.inputs(), raw=True,
+        return self.node.create_subscription(
+            self.msg_type, self.topic, callback, self.qos.inputs(), raw=True,
             event_callbacks=events,
         )  # fmt: skip
 
     def _on_incompatible(self, info: QoSRequestedIncompatibleQoSInfo) -> None:
         self.incompatible += 1
-        if self.qos.input_reliability != "best_available":
+        resolvable = info.last_policy_kind == QoSPolicyKind.RELIABILITY
+        if self.qos.input_reliability != "best_available" or not resolvable:
             self.node.get_logger().warning(
                 f"{self.topic}: a publisher with incompatible QoS is not served "
                 f"(input_reliability {self.qos.input_reliability}; policy {info.last_policy_kind})"
             )
             return
-        if self._timer is None:  # not inside rmw's event: on the executor, once
-            self._timer = self.node.create_timer(0.0, self._resubscribe, clock=self._steady)
+        if self._timer is None and self._handover is None:  # on the executor, not in rmw's event
+            self._timer = self.node.create_timer(0.0, self._begin_handover, clock=self._steady)
 
-    def _resubscribe(self) -> None:
+    def _begin_handover(self) -> None:
+        """Subscribe again beside the old subscription; both deliver through the handover."""
+        self.node.destroy_timer(self._timer)
+        self._handover = Handover()
+        self._old = self.sub
+        if self._old is not None:
+            self._old.callback = self._from_old
+        self.sub = self._subscribe(self._from_new)
+        self._deadline_ns = self._steady.now().nanoseconds + int(HANDOVER_S * 1e9)
+        self._timer = self.node.create_timer(POLL_S, self._poll_handover, clock=self._steady)
+
+    def _from_old(self, data: bytes) -> None:
+        if self._handover is None or self._handover.first("old", data):
+            self.callback(data)
+
+    def _from_new(self, data: bytes) -> None:
+        if self._handover is None or self._handover.first("new", data):
+            self.callback(data)
+
+    def _poll_handover(self) -> None:
+        """End the handover once the new subscription is matched with every publisher."""
+        assert self.sub is not None and self._handover is not None
+        matched = self.sub.get_publisher_count() >= self.node.count_publishers(self.topic)
+        late = self._steady.now().nanoseconds >= self._deadline_ns
+        if not (matched or late):
+            return
         self.node.destroy_timer(self._timer)
         self._timer = None
-        self.destroy()
-        self._subscribe()
+        self._drain_old()
         self.resubscribed += 1
-        self.node.get_logger().info(
+        self.unmatched += 0 if matched else 1
+        log = self.node.get_logger()
+        (log.info if matched else log.warning)(
             f"{self.topic}: a best-effort publisher appeared; subscribed again (best available "
-            "now resolves to best effort: reliable and best-effort publishers are served)"
-        )
+            "now resolves to best effort: reliable and best-effort publishers are served); "
+            + ("every publisher matched" if matched else f"NOT every publisher matched in "
+               f"{HANDOVER_S} s: messages may be lost")
+            + f", {self._handover.duplicates} message(s) that reached both delivered once"
+        )  # fmt: skip
+        self._handover = None
+
+    def _drain_old(self) -> None:
+        """Deliver what the old subscription still holds, then destroy it."""
+        old, self._old = self._old, None
+        if old is None:
+            return
+        with old.handle:
+            while (taken := old.handle.take_message(old.msg_type, old.raw)) is not None:
+                self._from_old(taken[0])
+        self.node.destroy_subscription(old)
 
     def destroy(self) -> None:
-        if self.sub is not None:
-            self.node.destroy_subscription(self.sub)
-            self.sub = None
+        if self._timer is not None:
+            self.node.destroy_timer(self._timer)
+            self._timer = None
+        for sub in (self._old, self.sub):
+            if sub is not None:
+                self.node.destroy_subscription(sub)
+        self._old = self.sub = None
 
 
 def output_events(node: Node, topic: str) -> PublisherEventCallbacks:
