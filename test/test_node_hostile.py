@@ -277,7 +277,7 @@ def test_subscribing_again_mid_stream_loses_and_repeats_nothing(client):
         slip.publish(stamped(m, sent[-1]))
         time.sleep(0.002)  # pacing of the stream, not a wait on an event
     wait_for(lambda: len(forces.items) >= len(sent), 60, "an answer to every slip")
-    proc.wait_log("subscribed again", 30)
+    proc.wait_log("subscribed again", 30)  # logged when the handover ends
     time.sleep(0.5)  # a duplicate would arrive right behind the last answer
     with forces.lock:
         got = [stamp_of(m) for m in forces.items]

@@ -10,7 +10,9 @@ Inputs (``input_reliability``):
   for that event and subscribes again, which then resolves to BEST_EFFORT and serves both
   kinds. The handover loses nothing: the old subscription stays until the new one is matched
   with every publisher of the topic (at most ``HANDOVER_S``), a message that reached both is
-  delivered once (same bytes), and what is still queued in the old one is taken before it goes.
+  delivered once (same bytes; the new one's copy may come after the old one is gone, so its
+  copies are looked for up to ``TAIL_S`` longer), and what is still queued in the old one is
+  taken before it goes.
   ``resubscribed`` on /diagnostics counts the handovers, ``resubscribe_unmatched`` those that
   ended on the time bound with a publisher not yet matched (a possible loss: a warning).
 - ``reliable``: only reliable publishers are served (an incompatible one is logged).
@@ -95,24 +97,30 @@ class TopicQoS:
 
 HANDOVER_S = 2.0  # bound on waiting for the new subscription's matches (steady time)
 POLL_S = 0.005  # how often the handover checks them
+TAIL_S = 5.0  # how long the new subscription's late copies of the old one's messages are dropped
 
 
 class Handover:
     """Two subscriptions on one topic for a moment: a message that reached both (the same
-    bytes) is delivered once."""
+    bytes) is delivered once. Once the old one is gone (``closed``), the new one's copies of
+    what the old one delivered are still dropped."""
 
     def __init__(self) -> None:
         self.pending: dict[str, Counter[bytes]] = {"old": Counter(), "new": Counter()}
         self.duplicates = 0
+        self.closed = False
 
     def first(self, side: str, data: bytes) -> bool:
         """True if ``data`` from ``side`` ("old" or "new") has not come from the other side."""
         other = self.pending["new" if side == "old" else "old"]
         if other[data]:
             other[data] -= 1
+            if not other[data]:
+                del other[data]
             self.duplicates += 1
             return False
-        self.pending[side][data] += 1
+        if not self.closed:
+            self.pending[side][data] += 1
         return True
 
 
@@ -140,6 +148,7 @@ class InputSubscription:
         self._timer: Any = None
         self._handover: Handover | None = None
         self._deadline_ns = 0
+        self._matched = False
         self._old: Subscription | None = None
         self.sub: Subscription | None = self._subscribe(callback)
 
@@ -178,26 +187,42 @@ class InputSubscription:
             self.callback(data)
 
     def _from_new(self, data: bytes) -> None:
-        if self._handover is None or self._handover.first("new", data):
+        handover = self._handover
+        if handover is None:
             self.callback(data)
+            return
+        if handover.first("new", data):
+            self.callback(data)
+        if handover.closed and not handover.pending["old"]:
+            self._end_handover()  # every copy seen: no need to wait for TAIL_S
 
     def _poll_handover(self) -> None:
-        """End the handover once the new subscription is matched with every publisher."""
+        """Close the handover once the new subscription is matched with every publisher."""
         assert self.sub is not None and self._handover is not None
         matched = self.sub.get_publisher_count() >= self.node.count_publishers(self.topic)
         late = self._steady.now().nanoseconds >= self._deadline_ns
         if not (matched or late):
             return
         self.node.destroy_timer(self._timer)
-        self._timer = None
         self._drain_old()
+        self._handover.closed = True
+        self._handover.pending["new"].clear()  # nothing of the old one's is to come
         self.resubscribed += 1
         self.unmatched += 0 if matched else 1
+        self._matched = matched
+        self._timer = self.node.create_timer(TAIL_S, self._end_handover, clock=self._steady)
+
+    def _end_handover(self) -> None:
+        """Stop looking for copies; say how the handover went."""
+        if self._handover is None:
+            return
+        self.node.destroy_timer(self._timer)
+        self._timer = None
         log = self.node.get_logger()
-        (log.info if matched else log.warning)(
+        (log.info if self._matched else log.warning)(
             f"{self.topic}: a best-effort publisher appeared; subscribed again (best available "
             "now resolves to best effort: reliable and best-effort publishers are served); "
-            + ("every publisher matched" if matched else f"NOT every publisher matched in "
+            + ("every publisher matched" if self._matched else f"NOT every publisher matched in "
                f"{HANDOVER_S} s: messages may be lost")
             + f", {self._handover.duplicates} message(s) that reached both delivered once"
         )  # fmt: skip
