@@ -256,6 +256,18 @@ def test_best_effort_publishers_are_served(client, hostile):
     wait_for(lambda: answered(4100.0, reliable), 30, "a reliable load as well", interval=0.1)
 
 
+def test_handover_delivers_a_message_that_reached_both_subscriptions_once():
+    from tire_model_ros.ros.topics import Handover
+
+    h = Handover()
+    assert [h.first("old", b"a"), h.first("new", b"b"), h.first("new", b"a")] == [1, 1, 0]
+    assert h.first("old", b"b") is False and h.first("old", b"a") is True  # a sent twice
+    h.closed = True  # the old one gone: its late copies still dropped, nothing new recorded
+    h.pending["new"].clear()
+    assert [h.first("new", b"a"), h.first("new", b"a"), h.first("new", b"c")] == [0, 1, 1]
+    assert h.duplicates == 3 and not h.pending["old"] and not h.pending["new"]
+
+
 def test_subscribing_again_mid_stream_loses_and_repeats_nothing(client):
     """A reliable slip stream at ~500 Hz; a best-effort publisher appears in its middle: the
     node subscribes again, and every reliable slip is answered exactly once."""

@@ -143,7 +143,6 @@ class InputSubscription:
         self.qos = qos
         self.resubscribed = 0
         self.unmatched = 0
-        self.incompatible = 0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)  # not paused with sim time
         self._timer: Any = None
         self._handover: Handover | None = None
@@ -160,7 +159,6 @@ class InputSubscription:
         )  # fmt: skip
 
     def _on_incompatible(self, info: QoSRequestedIncompatibleQoSInfo) -> None:
-        self.incompatible += 1
         resolvable = info.last_policy_kind == QoSPolicyKind.RELIABILITY
         if self.qos.input_reliability != "best_available" or not resolvable:
             self.node.get_logger().warning(
