@@ -1,16 +1,18 @@
 """Recordings (rosbag2 bags) as first-class data: read into aligned ``WheelSeries``, write back.
 
 :mod:`.read` reads bags (MCAP, sqlite3) into raw and decoded topics and aligned wheels,
+checking every CRC the files carry (a damaged bag is refused, or salvaged: ``salvage=True``),
 :mod:`.align` holds the one alignment rule of INTERFACE.md on stamp arrays, :mod:`.write`
-writes bags atomically, :mod:`.info` summarises one. No ROS import.
+writes bags atomically, :mod:`.salvage` writes what a salvaging read recovered as a new bag,
+:mod:`.info` summarises one. No ROS import.
 """
 
 from tire_model_ros.recording.align import hold_latest, latest_at_or_before, nearest
+from tire_model_ros.recording.errors import Damage, DamagedBagError, RecordingError
 from tire_model_ros.recording.read import (
     Channel,
     RawBag,
     RawTopic,
-    RecordingError,
     decode_topic,
     find_wheels,
     read_raw,
@@ -23,6 +25,8 @@ from tire_model_ros.recording.write import BagWriter, decimate_mask, write_recor
 __all__ = [
     "BagWriter",
     "Channel",
+    "Damage",
+    "DamagedBagError",
     "RawBag",
     "RawTopic",
     "RecordingError",

@@ -98,14 +98,17 @@ def schedule(bag: RawBag) -> Schedule:
 
 
 def load_schedule(
-    path: str | os.PathLike[str], wheels: Sequence[str] | None = None, measured: bool = False
+    path: str | os.PathLike[str],
+    wheels: Sequence[str] | None = None,
+    measured: bool = False,
+    salvage: bool = False,
 ) -> Schedule:
-    """Read the bag's topics to play and order them."""
-    listing = read_raw(path, lambda _t: False)  # topic table only
+    """Read the bag's topics to play and order them (``salvage``: see ``read_raw``)."""
+    listing = read_raw(path, lambda _t: False, salvage=salvage)  # topic table only
     chosen = set(select_topics(list(listing.all_topics), wheels, measured))
     if not chosen:
         raise RecordingError(f"{path}: no input topics to play (no P/slip topic)")
-    return schedule(read_raw(path, lambda t: t in chosen))
+    return schedule(read_raw(path, lambda t: t in chosen, salvage=salvage))
 
 
 def play(
@@ -119,13 +122,15 @@ def play(
     wait_subscribers_s: float = 2.0,
     should_stop: Callable[[], bool] = lambda: False,
     log: Callable[[str], None] = print,
+    salvage: bool = False,
 ) -> int:
     """Publish the recording; return how many messages were published.
 
     ``rate`` scales the original timing (2 = twice as fast); 0 publishes as fast as possible
     (reliable QoS, history depth ``queue`` on the publisher). Waits up to
     ``wait_subscribers_s`` for a subscriber on every topic before starting, and for all
-    messages to be acknowledged at the end.
+    messages to be acknowledged at the end. ``salvage``: play what can be trusted of a
+    damaged or unclosed bag (see ``read_raw``), its salvage report logged first.
     """
     import rclpy
     from rclpy.duration import Duration
@@ -133,7 +138,10 @@ def play(
 
     if not rate >= 0 or not np.isfinite(rate):
         raise ValueError(f"--rate must be >= 0, got {rate}")
-    sched = load_schedule(path, wheels, measured)
+    sched = load_schedule(path, wheels, measured, salvage)
+    if salvage:
+        for line in sched.bag.salvage_report():
+            log(f"salvage: {line}")
     qos = QoSProfile(
         history=HistoryPolicy.KEEP_LAST, depth=queue, reliability=ReliabilityPolicy.RELIABLE
     )

@@ -4,6 +4,9 @@ Messages are taken as serialized CDR bytes (no deserialisation), logged with the
 header.stamp as log time, and streamed into a ``BagWriter`` in a temp folder beside the
 target; the bag is renamed into place when recording stops (SIGINT/SIGTERM, ``duration``,
 ``count``), so an interrupted recorder never leaves a half-written bag under the target name.
+The writer is asked to flush on every spin (at most every 0.05 s), so its complete chunks are
+on disk at least every ``mcap_stream.FLUSH_S``: a recorder killed with SIGKILL loses at most
+that last part, and ``tire-model info --salvage TARGET -o BAG`` recovers the rest.
 """
 
 from __future__ import annotations
@@ -114,12 +117,13 @@ def record(
                 total["n"] += 1
 
             node.create_subscription(classes[topic], topic, callback, qos, raw=True)
-        log(f"recording {len(topics)} topic(s) to {out}")
+        log(f"recording {len(topics)} topic(s) to {out} (until stopped, in {writer.tmpdir})")
         end = None if duration_s is None else time.monotonic() + duration_s
         while not stop["flag"] and (count is None or total["n"] < count):
             if end is not None and time.monotonic() >= end:
                 break
             executor.spin_once(timeout_sec=0.05)
+            writer.flush_due()
         writer.close()
         log(f"recorded {total['n']} messages to {out}")
         return dict(writer.counts)
