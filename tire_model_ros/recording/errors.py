@@ -41,7 +41,7 @@ class Damage:
         """``<file>: <what> at byte <offset> (topics ...): <reason>``."""
         at = f" at byte {self.offset}" if self.offset is not None else ""
         topics = f" (topics {', '.join(self.topics)})" if self.topics else ""
-        part = "" if self.what == "file" else f"{self.what}{at}{topics}: "
+        part = "" if self.what in ("file", "metadata") else f"{self.what}{at}{topics}: "
         return f"{self.file}: {part}{self.reason}"
 
     def lost_text(self) -> str:

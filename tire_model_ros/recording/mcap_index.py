@@ -184,7 +184,8 @@ def _lost(filebuf: Bytes, chunk: ChunkIndex, declared: Declared) -> dict[str, in
 
 
 class _Reader:
-    """One pass over the chunks of a closed, indexed file (see ``read_indexed``)."""
+    """One pass over the chunks of a closed, indexed file (see ``read_indexed``): the chunks
+    one by one (CRCs), then every message index at once (numpy, whatever the chunk count)."""
 
     def __init__(
         self, file: Path, filebuf: Bytes, summary: Summary, select: Callable[[str], bool]
@@ -192,17 +193,14 @@ class _Reader:
         self.file, self.filebuf, self.summary = file, filebuf, summary
         self.declared = _declared(summary)
         self.wanted = {cid for cid, (topic, _) in self.declared.channels.items() if select(topic)}
-        self.pieces: Pieces = {cid: [] for cid in self.wanted}
+        self.pieces: Pieces = {}
         self.counts = dict.fromkeys(self.declared.channels, 0)
         self.segments: list[Bytes] = []
-        self.base = 0
-        self.damaged: list[Damage] = []
+        self.index_at: list[tuple[int, int, int]] = []  # (record offset, channel, segment)
 
     def chunk(self, chunk: ChunkIndex, verified: bool) -> Damage | None:
-        """Read one chunk; a damaged chunk is returned (and skipped), a damaged message index
-        raised as ``_IndexDamageError``."""
+        """Take one chunk's records; a damaged chunk is returned (and skipped)."""
         offset = chunk.chunk_start_offset
-        topics = self.declared.topics(chunk.message_index_offsets)
         try:
             records = _chunk_records(self.filebuf, chunk)
             stored = _stored_crc(self.filebuf, chunk)
@@ -210,35 +208,83 @@ class _Reader:
         except Exception as exc:  # decompression and size errors of a damaged chunk
             reason = f"unreadable ({type(exc).__name__}: {exc})"
         if reason is not None:
+            topics = self.declared.topics(chunk.message_index_offsets)
             lost = _lost(self.filebuf, chunk, self.declared)
             return Damage(self.file, "chunk", reason, offset, topics, lost)
-        for cid, moff in chunk.message_index_offsets.items():
-            try:
-                self._index(records, moff, cid)
-            except ValueError as exc:
-                topic = self.declared.topics([cid])
-                damage = Damage(self.file, "message index", str(exc), moff, topic)
-                raise _IndexDamageError(damage) from None
+        seg = len(self.segments)
+        self.index_at.extend((moff, cid, seg) for cid, moff in chunk.message_index_offsets.items())
         self.segments.append(records)
-        self.base += len(records)
         return None
-
-    def _index(self, records: Bytes, moff: int, cid: int) -> None:
-        if cid not in self.counts:
-            raise ValueError(f"message index for undeclared channel {cid}")
-        index = _message_index(self.filebuf, moff, cid)
-        self.counts[cid] += len(index)
-        if cid in self.wanted and len(index):
-            off = index[:, 1].astype(np.int64)
-            log_ns = index[:, 0].astype(np.int64)
-            _check_messages(records, off, cid, log_ns)
-            lens = _u64(records, off + 1).astype(np.int64) - 22
-            self.pieces[cid].append((off + self.base + _MSG_HEADER, lens, log_ns))
 
     def buffer(self) -> Bytes:
         if len(self.segments) == 1:
             return self.segments[0]
         return np.concatenate(self.segments) if self.segments else np.zeros(0, np.uint8)
+
+    def messages(self, buffer: Bytes) -> None:
+        """Read every message index of the chunks taken, check each entry against the record
+        it points at (a Message of that channel inside its chunk, with the same log time),
+        count and locate the messages. Raises ``_IndexDamageError`` naming the first index
+        that disagrees."""
+        if not self.index_at:
+            return
+        at, cid, seg = (np.array(c, np.int64) for c in zip(*self.index_at, strict=True))
+        nbytes = self._index_heads(at, cid)
+        k = nbytes // 16
+        owner = np.repeat(np.arange(len(at)), k)
+        first = np.repeat(np.cumsum(k) - k, k)
+        pair_at = at[owner] + 15 + 16 * (np.arange(len(owner)) - first)
+        pairs = _gather_words(self.filebuf, pair_at, 2, "<u8")
+        log_ns, off = pairs[:, 0], pairs[:, 1]
+        seg_len = np.array([len(r) for r in self.segments], np.int64)
+        seg_base = np.cumsum(seg_len) - seg_len
+        length, base = seg_len[seg[owner]], seg_base[seg[owner]]
+        # each offset must leave room for a Message record's header inside its chunk
+        room = length - _MSG_HEADER
+        good = (room >= 0) & (off <= np.maximum(room, 0).astype(np.uint64))
+        if len(buffer) < _MSG_HEADER:
+            self._index_damage(int(at[0]), int(cid[0]), "message index of empty chunks")
+        # where an offset is already wrong, look at byte 0 instead (inside the buffer)
+        pos = np.where(good, np.where(good, off, 0).astype(np.int64) + base, 0)
+        size = _u64(buffer, pos + 1)
+        good &= buffer[pos] == 0x05
+        good &= (size >= 22) & (size <= np.maximum(length + base - pos - 9, 0).astype(np.uint64))
+        good &= _gather_words(buffer, pos + 9, 1, "<u2")[:, 0] == cid[owner]
+        good &= _u64(buffer, pos + _LOG_AT) == log_ns
+        if not good.all():
+            bad = int(owner[np.argmin(good)])
+            reason = "message index and message records disagree"
+            self._index_damage(int(at[bad]), int(cid[bad]), reason)
+        channel = cid[owner]
+        for c in self.counts:
+            sel = channel == c
+            self.counts[c] = int(sel.sum())
+            if c in self.wanted and self.counts[c]:
+                lens = size[sel].astype(np.int64) - 22
+                self.pieces[c] = [(pos[sel] + _MSG_HEADER, lens, log_ns[sel].astype(np.int64))]
+
+    def _index_heads(self, at: Int64s, cid: Int64s) -> Int64s:
+        """Byte length of each MessageIndex's pairs; its header checked (type, channel)."""
+        fb = self.filebuf
+        ok = at + 15 <= len(fb)
+        head = np.where(ok, at, 0)
+        ok &= fb[head] == 0x07
+        ok &= _gather_words(fb, head + 9, 1, "<u2")[:, 0] == cid
+        nbytes = _gather_words(fb, head + 11, 1, "<u4")[:, 0].astype(np.int64)
+        ok &= (nbytes % 16 == 0) & (head + 15 + nbytes <= len(fb))
+        ok &= np.isin(cid, list(self.counts))
+        if not ok.all():
+            bad = int(np.argmin(ok))
+            self._index_damage(
+                int(at[bad]),
+                int(cid[bad]),
+                "not a message index of a declared channel, or a bad length",
+            )
+        return nbytes
+
+    def _index_damage(self, at: int, cid: int, reason: str) -> None:
+        damage = Damage(self.file, "message index", reason, at, self.declared.topics([cid]))
+        raise _IndexDamageError(damage)
 
 
 class _IndexDamageError(Exception):
@@ -279,46 +325,31 @@ def read_indexed(
     reader = _Reader(file, filebuf, summary, select)
     declared = reader.declared if ends.summary_crc else None
     damaged: list[Damage] = []
+    for chunk in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+        damage = reader.chunk(chunk, verified=bool(data_ok))
+        if damage is not None:
+            damaged.append(damage)
+    if damaged and not salvage:
+        raise DamagedBagError(damaged)
+    buffer = reader.buffer()
     try:
-        for chunk in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
-            damage = reader.chunk(chunk, verified=bool(data_ok))
-            if damage is not None:
-                damaged.append(damage)
+        reader.messages(buffer)
     except _IndexDamageError as exc:
         if not salvage:
-            raise DamagedBagError([*damaged, exc.damage]) from None
+            raise DamagedBagError([exc.damage]) from None
         return Rescan(exc.damage, declared)
     if data_ok is False and not damaged:
         if not salvage:
             raise DamagedBagError([mcap_check.data_section_damage(file, ends)])
         return Rescan(mcap_check.data_section_damage(file, ends), declared)
-    if damaged and not salvage:
-        raise DamagedBagError(damaged)
     stats = summary.statistics
     total = sum(reader.counts.values())
     if not damaged and stats is not None and stats.message_count != total:
         return None  # messages outside the index (or a broken index): read it all
     announced = stats.message_count if stats is not None else None
     pieces, counts = reader.pieces, reader.counts
-    return assemble(reader.declared, pieces, counts, reader.buffer(), announced, damaged)
+    return assemble(reader.declared, pieces, counts, buffer, announced, damaged)
 
 
 def _u64(buf: Bytes, offsets: Int64s) -> npt.NDArray[np.uint64]:
     return _gather_words(buf, offsets, 1, "<u8")[:, 0]
-
-
-def _check_messages(records: Bytes, off: Int64s, cid: int, log_ns: Int64s) -> None:
-    """Every indexed offset must hold a Message record of this channel inside the chunk, with
-    the log time the index gives."""
-    if off.size == 0:
-        return
-    if off.min() < 0 or off.max() + _MSG_HEADER > len(records):
-        raise ValueError("message index points outside its chunk")
-    if not np.all(records[off] == 0x05):
-        raise ValueError("message index points at a record that is not a message")
-    size = _u64(records, off + 1).astype(np.int64)
-    chan = _gather_words(records, off + 9, 1, "<u2")[:, 0]
-    if np.any(size < 22) or np.any(off + 9 + size > len(records)) or np.any(chan != cid):
-        raise ValueError("message index and message records disagree")
-    if np.any(_u64(records, off + _LOG_AT).astype(np.int64) != log_ns):
-        raise ValueError("message index and message records disagree on log times")

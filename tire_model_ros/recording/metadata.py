@@ -56,25 +56,26 @@ class BagMetadata:
         return list(dict.fromkeys(folder / Path(f).name for f in self.files))
 
     def duplicates(self) -> list[str]:
-        """One line per storage file listed more than once."""
+        """One line per storage file listed more than once (the caller names metadata.yaml)."""
         lines = []
         names = [Path(f).name for f in self.files]
         for name in dict.fromkeys(names):
             if (k := names.count(name)) > 1:
                 lines.append(
-                    f"{self.path}: lists the data file {name} {k} times in relative_file_paths "
+                    f"lists the data file {name} {k} times in relative_file_paths "
                     "(reading it each time would multiply the recording)"
                 )
         entries = [Path(f).name for f, _ in self.file_counts or ()]
         for name in dict.fromkeys(entries):
             if (k := entries.count(name)) > 1:
-                lines.append(f"{self.path}: lists the data file {name} {k} times in files")
+                lines.append(f"lists the data file {name} {k} times in files")
         return lines
 
     def disagreements(
         self, total: int, topics: dict[str, int], per_file: dict[str, int] | None
     ) -> list[str]:
-        """One line per count of metadata.yaml that the storage files do not hold.
+        """One line per count of metadata.yaml that the storage files do not hold (the caller
+        names metadata.yaml).
 
         ``topics``: messages per topic found; ``per_file``: messages per file name found
         (None: not known per file).
@@ -82,23 +83,23 @@ class BagMetadata:
         lines = []
         if total != self.message_count:
             lines.append(
-                f"{self.path}: message_count is {self.message_count}, the data files hold {total}"
+                f"message_count is {self.message_count}, the data files hold {total}"
             )
         for topic in sorted(set(self.topic_counts) | set(topics)):
             said, held = self.topic_counts.get(topic, 0), topics.get(topic, 0)
             if said != held:
                 lines.append(
-                    f"{self.path}: topic {topic}: message_count is {said}, the data files hold "
+                    f"topic {topic}: message_count is {said}, the data files hold "
                     f"{held}"
                 )
         if self.file_counts is not None and per_file is not None:
             for name, said in self.file_counts:
                 in_file = per_file.get(Path(name).name)
                 if in_file is None:
-                    lines.append(f"{self.path}: files lists {name}, not in relative_file_paths")
+                    lines.append(f"files lists {name}, not in relative_file_paths")
                 elif said != in_file:
                     lines.append(
-                        f"{self.path}: file {name}: message_count is {said}, it holds {in_file}"
+                        f"file {name}: message_count is {said}, it holds {in_file}"
                     )
         return lines
 

@@ -301,7 +301,7 @@ def _read_dir(path: Path, select: Select, salvage: bool) -> RawBag:
     if salvage:
         return _salvage_dir(path, select, meta)
     if meta is not None and (duplicates := meta.duplicates()):
-        raise RecordingError(_one_line(duplicates))
+        raise RecordingError(f"{meta.path}: {_one_line(duplicates)}")
     if meta is not None and meta.simple_mcap():
         parts = [_read_storage_file(f, select, False) for f in meta.storage_files()]
         bag = _bag(path, "mcap", parts, meta.message_count)
@@ -311,7 +311,7 @@ def _read_dir(path: Path, select: Select, salvage: bool) -> RawBag:
         per_file = {p.file.name: p.found for p in parts} if parts else None
         topics = {t: n for t, (_, n) in bag.all_topics.items()}
         if disagree := meta.disagreements(bag.messages_read, topics, per_file):
-            raise RecordingError(_one_line(disagree))
+            raise RecordingError(f"{meta.path}: {_one_line(disagree)}")
     return bag
 
 
