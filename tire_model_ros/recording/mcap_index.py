@@ -228,40 +228,46 @@ class _Reader:
         that disagrees."""
         if not self.index_at:
             return
-        at, cid, seg = (np.array(c, np.int64) for c in zip(*self.index_at, strict=True))
+        # channel by channel (chunks in file order within one): each channel's entries end
+        # up contiguous, and are split off without a mask per channel
+        at, cid, seg = (
+            np.array(c, np.int64) for c in zip(*sorted(self.index_at, key=_by_channel), strict=True)
+        )
         nbytes = self._index_heads(at, cid)
-        k = nbytes // 16
-        owner = np.repeat(np.arange(len(at)), k)
-        first = np.repeat(np.cumsum(k) - k, k)
-        pair_at = at[owner] + 15 + 16 * (np.arange(len(owner)) - first)
-        pairs = _gather_words(self.filebuf, pair_at, 2, "<u8")
-        log_ns, off = pairs[:, 0], pairs[:, 1]
-        seg_len = np.array([len(r) for r in self.segments], np.int64)
-        seg_base = np.cumsum(seg_len) - seg_len
-        length, base = seg_len[seg[owner]], seg_base[seg[owner]]
-        # each offset must leave room for a Message record's header inside its chunk
-        room = length - _MSG_HEADER
-        good = (room >= 0) & (off <= np.maximum(room, 0).astype(np.uint64))
         if len(buffer) < _MSG_HEADER:
             self._index_damage(int(at[0]), int(cid[0]), "message index of empty chunks")
-        # where an offset is already wrong, look at byte 0 instead (inside the buffer)
-        pos = np.where(good, np.where(good, off, 0).astype(np.int64) + base, 0)
-        size = _u64(buffer, pos + 1)
-        good &= buffer[pos] == 0x05
-        good &= (size >= 22) & (size <= np.maximum(length + base - pos - 9, 0).astype(np.uint64))
-        good &= _gather_words(buffer, pos + 9, 1, "<u2")[:, 0] == cid[owner]
-        good &= _u64(buffer, pos + _LOG_AT) == log_ns
+        owner = np.repeat(np.arange(len(at)), nbytes // 16)
+        # each index's pairs are contiguous in the file: views, joined once
+        views = (
+            self.filebuf[a + 15 : a + 15 + n]
+            for a, n in zip(at.tolist(), nbytes.tolist(), strict=True)
+        )
+        pairs = np.concatenate(list(views)).view("<u8").reshape(-1, 2)
+        log_ns, local = pairs[:, 0], pairs[:, 1].astype(np.int64)  # > 2**63: negative, refused
+        seg_len = np.array([len(r) for r in self.segments], np.int64)
+        end = np.cumsum(seg_len)[seg][owner]  # where each entry's chunk ends in ``buffer``
+        pos = local + (end - seg_len[seg][owner])
+        # a Message record's header must fit in its chunk; where not, look at byte 0 instead
+        good = (local >= 0) & (pos + _MSG_HEADER <= end)
+        pos[~good] = 0
+        head = _message_heads(buffer, pos)
+        size = head["len"].astype(np.int64)
+        good &= (head["op"] == 0x05) & (size >= 22) & (size <= end - pos - 9)
+        good &= (head["chan"] == cid[owner]) & (head["log"] == log_ns)
         if not good.all():
             bad = int(owner[np.argmin(good)])
             reason = "message index and message records disagree"
             self._index_damage(int(at[bad]), int(cid[bad]), reason)
-        channel = cid[owner]
-        for c in self.counts:
-            sel = channel == c
-            self.counts[c] = int(sel.sum())
-            if c in self.wanted and self.counts[c]:
-                lens = size[sel].astype(np.int64) - 22
-                self.pieces[c] = [(pos[sel] + _MSG_HEADER, lens, log_ns[sel].astype(np.int64))]
+        per_channel = np.bincount(cid, weights=nbytes // 16, minlength=max(self.counts) + 1)
+        stop = 0
+        for c in sorted(self.counts):
+            start, stop = stop, stop + int(per_channel[c])
+            self.counts[c] = stop - start
+            if c in self.wanted and stop > start:
+                lens = size[start:stop] - 22
+                self.pieces[c] = [
+                    (pos[start:stop] + _MSG_HEADER, lens, log_ns[start:stop].astype(np.int64))
+                ]
 
     def _index_heads(self, at: Int64s, cid: Int64s) -> Int64s:
         """Byte length of each MessageIndex's pairs; its header checked (type, channel)."""
@@ -285,6 +291,11 @@ class _Reader:
     def _index_damage(self, at: int, cid: int, reason: str) -> None:
         damage = Damage(self.file, "message index", reason, at, self.declared.topics([cid]))
         raise _IndexDamageError(damage)
+
+
+def _by_channel(entry: tuple[int, int, int]) -> tuple[int, int]:
+    """Sort key of a message index (offset, channel, segment): channel, then segment."""
+    return entry[1], entry[2]
 
 
 class _IndexDamageError(Exception):
@@ -351,5 +362,17 @@ def read_indexed(
     return assemble(reader.declared, pieces, counts, buffer, announced, damaged)
 
 
-def _u64(buf: Bytes, offsets: Int64s) -> npt.NDArray[np.uint64]:
-    return _gather_words(buf, offsets, 1, "<u8")[:, 0]
+#: The fixed part of a Message record, as laid out in the file.
+_HEAD = np.dtype(
+    [("op", "u1"), ("len", "<u8"), ("chan", "<u2"), ("seq", "<u4"), ("log", "<u8"), ("pub", "<u8")]
+)
+
+
+def _message_heads(buf: Bytes, offsets: Int64s) -> npt.NDArray[np.void]:
+    """The Message record headers at ``offsets`` of ``buf``: one 31-byte gather per message
+    through a 1-byte-stride view (all offsets at least 31 bytes before the end)."""
+    # gathering opaque 31-byte items is ~4x faster than gathering the structured dtype
+    size = _HEAD.itemsize
+    window = np.ndarray((len(buf) - size + 1,), f"V{size}", buffer=buf, strides=(1,))
+    heads: npt.NDArray[np.void] = window[offsets].view(_HEAD)
+    return heads

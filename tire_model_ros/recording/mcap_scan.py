@@ -51,11 +51,11 @@ def read_mcap(file: Path, select: Callable[[str], bool], salvage: bool = False) 
     ValueError
         a file that is not an MCAP file at all.
     """
-    raw = file.read_bytes()
-    filebuf = np.frombuffer(raw, np.uint8)
+    filebuf = np.fromfile(file, np.uint8)
     got = read_indexed(file, filebuf, select, salvage)
     if isinstance(got, McapContent):
         return got
+    raw = filebuf.tobytes()  # the scan slices and searches bytes
     scan = _Scan(file, raw, salvage, got.declared if isinstance(got, Rescan) else None)
     if isinstance(got, Rescan):
         scan.damages.append(got.damage)
