@@ -1,7 +1,9 @@
 """Recordings (rosbag2 bags) as first-class data: read into aligned ``WheelSeries``, write back.
 
-:mod:`.read` reads bags (MCAP, sqlite3) into raw and decoded topics and aligned wheels,
-checking every CRC the files carry (a damaged bag is refused, or salvaged: ``salvage=True``),
+:mod:`.read` reads bags (MCAP, sqlite3) into raw and decoded topics and aligned wheels
+(through :mod:`.raw` for storage files, :mod:`.folder` for rosbag2 folders and
+:mod:`.mcap_scan` / :mod:`.mcap_index` for MCAP), checking every CRC the files carry and
+metadata.yaml against them (a damaged bag is refused, or salvaged: ``salvage=True``),
 :mod:`.align` holds the one alignment rule of INTERFACE.md on stamp arrays, :mod:`.write`
 writes bags atomically, :mod:`.salvage` writes what a salvaging read recovered as a new bag,
 :mod:`.info` summarises one. No ROS import.

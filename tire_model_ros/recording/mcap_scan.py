@@ -207,6 +207,8 @@ class _Scan:
                 if length < 22:
                     return "a message record is too short"
                 cid, _seq, log_ns = struct.unpack_from("<HIQ", rec, body)
+                if log_ns >= 1 << 63:
+                    return "a message's log time is out of range"
                 out.append((cid, base + body + 22, length - 22, log_ns))
             elif op in (_SCHEMA, _CHANNEL):
                 reason = self._declare(op, rec, body, end)

@@ -82,25 +82,18 @@ class BagMetadata:
         """
         lines = []
         if total != self.message_count:
-            lines.append(
-                f"message_count is {self.message_count}, the data files hold {total}"
-            )
+            lines.append(f"message_count is {self.message_count}, the data files hold {total}")
         for topic in sorted(set(self.topic_counts) | set(topics)):
             said, held = self.topic_counts.get(topic, 0), topics.get(topic, 0)
             if said != held:
-                lines.append(
-                    f"topic {topic}: message_count is {said}, the data files hold "
-                    f"{held}"
-                )
+                lines.append(f"topic {topic}: message_count is {said}, the data files hold {held}")
         if self.file_counts is not None and per_file is not None:
             for name, said in self.file_counts:
                 in_file = per_file.get(Path(name).name)
                 if in_file is None:
                     lines.append(f"files lists {name}, not in relative_file_paths")
                 elif said != in_file:
-                    lines.append(
-                        f"file {name}: message_count is {said}, it holds {in_file}"
-                    )
+                    lines.append(f"file {name}: message_count is {said}, it holds {in_file}")
         return lines
 
     def simple_mcap(self) -> bool:

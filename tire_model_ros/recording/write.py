@@ -26,7 +26,7 @@ from tire_model_ros.atomic import replace_path
 from tire_model_ros.recording import cdr
 from tire_model_ros.recording.mcap_write import CHUNK_BYTES, Batch, write_mcap
 from tire_model_ros.recording.metadata import TopicStats, rosbag2_metadata
-from tire_model_ros.recording.read import storage_of
+from tire_model_ros.recording.raw import storage_of
 from tire_model_ros.recording.series import WheelSeries
 from tire_model_ros.recording.streams import STORAGES
 from tire_model_ros.vocabulary import (
