@@ -329,7 +329,13 @@ def read_indexed(
         if not salvage:
             raise DamagedBagError([bad])
         return Rescan(bad, None)
-    summary = _summary(file)
+    try:
+        summary = _summary(file)
+    except Exception as exc:  # a summary without CRC, damaged: the mcap package's errors
+        if not salvage:
+            raise
+        reason = f"unreadable ({type(exc).__name__}: {exc})"
+        return Rescan(Damage(file, "summary", reason, ends.summary_start), None)
     if summary is None or not summary.chunk_indexes:
         return None
     data_ok = mcap_check.data_section_ok(filebuf, ends)
