@@ -118,19 +118,18 @@ def play(
     loop: bool = False,
     wheels: Sequence[str] | None = None,
     measured: bool = False,
+    salvage: bool = False,  # read_raw(salvage=True): what can be trusted, its report logged
     queue: int = 1000,
     wait_subscribers_s: float = 2.0,
     should_stop: Callable[[], bool] = lambda: False,
     log: Callable[[str], None] = print,
-    salvage: bool = False,
 ) -> int:
     """Publish the recording; return how many messages were published.
 
     ``rate`` scales the original timing (2 = twice as fast); 0 publishes as fast as possible
     (reliable QoS, history depth ``queue`` on the publisher). Waits up to
     ``wait_subscribers_s`` for a subscriber on every topic before starting, and for all
-    messages to be acknowledged at the end. ``salvage``: play what can be trusted of a
-    damaged or unclosed bag (see ``read_raw``), its salvage report logged first.
+    messages to be acknowledged at the end.
     """
     import rclpy
     from rclpy.duration import Duration

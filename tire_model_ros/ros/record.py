@@ -4,9 +4,6 @@ Messages are taken as serialized CDR bytes (no deserialisation), logged with the
 header.stamp as log time, and streamed into a ``BagWriter`` in a temp folder beside the
 target; the bag is renamed into place when recording stops (SIGINT/SIGTERM, ``duration``,
 ``count``), so an interrupted recorder never leaves a half-written bag under the target name.
-The writer is asked to flush on every spin (at most every 0.05 s), so its complete chunks are
-on disk at least every ``mcap_stream.FLUSH_S``: a recorder killed with SIGKILL loses at most
-that last part, and ``tire-model info --salvage TARGET -o BAG`` recovers the rest.
 """
 
 from __future__ import annotations
@@ -123,6 +120,8 @@ def record(
             if end is not None and time.monotonic() >= end:
                 break
             executor.spin_once(timeout_sec=0.05)
+            # complete chunks on disk at least every mcap_stream.FLUSH_S: a recorder killed
+            # with SIGKILL loses only that; `tire-model info --salvage OUT -o BAG` reads the rest
             writer.flush_due()
         writer.close()
         log(f"recorded {total['n']} messages to {out}")
