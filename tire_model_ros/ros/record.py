@@ -93,6 +93,7 @@ def record(
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     writer = BagWriter(out, overwrite=overwrite, storage=storage)
+    log(f"writing into {writer.tmpdir} until stopped (killed: `tire-model info --salvage {out}`)")
     context = rclpy.Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("tire_model_recorder", context=context)
@@ -114,7 +115,7 @@ def record(
                 total["n"] += 1
 
             node.create_subscription(classes[topic], topic, callback, qos, raw=True)
-        log(f"recording {len(topics)} topic(s) to {out} (until stopped, in {writer.tmpdir})")
+        log(f"recording {len(topics)} topic(s) to {out}")
         end = None if duration_s is None else time.monotonic() + duration_s
         while not stop["flag"] and (count is None or total["n"] < count):
             if end is not None and time.monotonic() >= end:
