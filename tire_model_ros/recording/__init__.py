@@ -3,18 +3,20 @@
 :mod:`.read` reads bags (MCAP, sqlite3) into raw and decoded topics and aligned wheels
 (through :mod:`.raw` for storage files, :mod:`.folder` for rosbag2 folders and
 :mod:`.mcap_scan` / :mod:`.mcap_index` for MCAP), checking every CRC the files carry and
-metadata.yaml against them (a damaged bag is refused, or salvaged: ``salvage=True``),
+metadata.yaml against them (a damaged bag is refused, or salvaged: ``salvage=True``; then
+:mod:`.salvage` writes what was recovered as a new bag),
 :mod:`.align` holds the one alignment rule of INTERFACE.md on stamp arrays, :mod:`.write`
-writes bags atomically, :mod:`.salvage` writes what a salvaging read recovered as a new bag,
-:mod:`.info` summarises one. No ROS import.
+writes bags atomically, :mod:`.info` summarises one. No ROS import.
 """
 
 from tire_model_ros.recording.align import hold_latest, latest_at_or_before, nearest
-from tire_model_ros.recording.errors import Damage, DamagedBagError, RecordingError
 from tire_model_ros.recording.read import (
     Channel,
+    Damage,
+    DamagedBagError,
     RawBag,
     RawTopic,
+    RecordingError,
     decode_topic,
     find_wheels,
     read_raw,

@@ -40,6 +40,8 @@ from tire_model_ros.vocabulary import CHANNEL_TYPES, OPTIONAL_CHANNELS, REQUIRED
 
 __all__ = [
     "Channel",
+    "Damage",
+    "DamagedBagError",
     "RawBag",
     "RawTopic",
     "RecordingError",
