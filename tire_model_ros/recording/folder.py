@@ -89,6 +89,20 @@ def storage_files_in(folder: Path) -> list[Path]:
     return []
 
 
+def _count_notes(meta: BagMetadata, bag: RawBag, parts: list[Part]) -> list[Damage]:
+    """What metadata.yaml counts that a salvaged bag does not hold: one line when parts were
+    skipped (that explains it), else one per count."""
+    topics = {t: n for t, (_, n) in bag.all_topics.items()}
+    per_file = {p.file.name: p.found for p in parts}
+    disagree = meta.disagreements(bag.messages_read, topics, per_file)
+    if disagree and bag.damages:
+        said = f"message_count is {meta.message_count}, {bag.messages_read} were recovered"
+        return [Damage(meta.path, "metadata", f"{said} (the rest was skipped)")]
+    return [
+        Damage(meta.path, "metadata", f"{line} (the files' counts are used)") for line in disagree
+    ]
+
+
 def _salvage_dir(path: Path, select: Select, meta: BagMetadata | None) -> RawBag:
     """Every readable storage file of a folder, each once; what disagrees is noted."""
     notes: list[Damage] = []
@@ -107,13 +121,7 @@ def _salvage_dir(path: Path, select: Select, meta: BagMetadata | None) -> RawBag
     parts = [read_storage_file(f, select, salvage=True) for f in files]
     storage = "sqlite3" if all(f.suffix == ".db3" for f in files) else "mcap"
     bag = bag_of(path, storage, parts, meta.message_count if meta else None)
-    if meta is not None:
-        topics = {t: n for t, (_, n) in bag.all_topics.items()}
-        per_file = {p.file.name: p.found for p in parts}
-        notes += [
-            Damage(meta.path, "metadata", f"{line} (the files' counts are used)")
-            for line in meta.disagreements(bag.messages_read, topics, per_file)
-        ]
-    bag.damages = notes + bag.damages
+    counts = _count_notes(meta, bag, parts) if meta is not None else []
+    bag.damages = notes + bag.damages + counts
     bag.salvaged = True
     return bag

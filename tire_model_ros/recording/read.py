@@ -8,8 +8,9 @@ file order) and are used for nothing else; the samples follow the alignment rule
 
 Storage files are read by :mod:`.raw`, folders by :mod:`.folder`. MCAP files are read by this
 package (``mcap_scan.read_mcap``): through their chunk and message indexes with numpy
-(``mcap_index``), else record by record; every CRC the file carries is checked. CDR is decoded with fixed layouts (``cdr``; rosbags' deserialiser is the reference
-and the fallback for odd messages). sqlite3 bags go through rosbags; when its metadata.yaml
+(``mcap_index``), else record by record; every CRC the file carries is checked. CDR is
+decoded with fixed layouts (``cdr``; rosbags' deserialiser is the reference and the fallback
+for odd messages). sqlite3 bags go through rosbags; when its metadata.yaml
 route yields fewer messages than metadata ``message_count`` (QoS in metadata.yaml differing
 from the storage file's makes it yield none), the storage files are opened directly
 (``RawBag.fallback``). A metadata.yaml that lists a file twice, or whose counts disagree with
