@@ -167,7 +167,7 @@ def test_fit_and_diagnose_refuse_a_damaged_recording_fit_salvages(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """The sample session with one chunk damaged: fit and diagnose refuse it with the line
-    and write nothing; fit --salvage fits the rest and says what it skipped."""
+    and write nothing; with --salvage both use the rest and say what they skipped."""
     from conftest import DEFAULT_TIR, ROOT
 
     session = tmp_path / "session"
@@ -190,6 +190,12 @@ def test_fit_and_diagnose_refuse_a_damaged_recording_fit_salvages(
     said = r"metadata\.yaml: message_count is 35928, \d+ were recovered \(the rest was skipped\)"
     assert len(re.findall(said, err)) == 1 and "message_count is 5988" not in err
     assert out.is_file()
+    report = tmp_path / "d.json"
+    cmd = ["diagnose", str(session), "--tir", str(DEFAULT_TIR), "--json", str(report)]
+    assert main([*cmd, "--salvage"]) == 0
+    err = capsys.readouterr().err
+    assert f"salvage: skipped {mcap}: chunk at byte {start}" in err
+    assert "salvage: recovered " in err and report.is_file()
 
 
 # ----------------------------------------------------------------------------- metadata.yaml
