@@ -97,6 +97,7 @@ setup(
         "rosbags>=0.10",
         "matplotlib>=3.6",
         "PyYAML>=6.0",
+        "threadpoolctl>=3.1",
     ],
     zip_safe=True,
     maintainer="tire_model_ros developers",
