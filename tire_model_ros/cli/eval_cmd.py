@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def read_inputs(path: Path) -> dict[str, np.ndarray]:
     """Columns of IN.csv as float arrays; ValueError naming file, row and column when bad."""
     try:
-        with open(path, newline="") as fh:
+        with open(path, newline="", encoding="utf-8-sig") as fh:  # a BOM is no column name
             rows = list(csv.reader(fh))
     except UnicodeDecodeError as exc:
         raise ValueError(f"{path}: not a text CSV file ({exc.reason})") from None
