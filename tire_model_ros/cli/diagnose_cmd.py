@@ -15,7 +15,11 @@ HELP = "locate, name and model a model/recording mismatch"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("bag", help="recording: rosbag2 folder, .mcap or .db3 file")
+    parser.add_argument(
+        "bag",
+        help="recording: rosbag2 folder, .mcap or .db3 file, or a measurement file imported "
+        "on the fly (.mat/.dat TTC, .tdx TYDEX, .csv)",
+    )
     parser.add_argument("--tir", required=True, help="the .tir property file to diagnose")
     parser.add_argument("--json", metavar="OUT", help="write the diagnosis JSON here")
     parser.add_argument("--report", metavar="DIR", help="write a report with plots into DIR")
@@ -81,7 +85,7 @@ def improved_tir(diag, source_tir):
 def run(args) -> int:
     from tire_model_ros.diagnosis import diagnose
     from tire_model_ros.model import TireModel, write_tir
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import open_recording
 
     out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
     if bool(args.reference) != bool(args.reference_json):
@@ -99,7 +103,7 @@ def run(args) -> int:
     ):
         raise FileExistsError(f"{args.report}: exists and is not empty (use --force)")
     model = TireModel.from_file(args.tir)
-    wheels = read_recording(args.bag, wheels=args.wheel)
+    wheels = open_recording(args.bag, wheels=args.wheel)
     t0 = time.perf_counter()
     diag = diagnose(list(wheels.values()), model, seed=args.seed)
     elapsed = time.perf_counter() - t0
@@ -120,7 +124,7 @@ def run(args) -> int:
         write_json_atomic(diag.to_json(), args.json, overwrite=args.force)
         print(f"wrote {args.json}")
     if args.reference:
-        ref = diag.score_reference(list(read_recording(args.reference, wheels=args.wheel).values()))
+        ref = diag.score_reference(list(open_recording(args.reference, wheels=args.wheel).values()))
         for ch in ref["heldout_baseline"]:
             a = ref["heldout_baseline"][ch]["rmse"]
             b = ref["heldout_improved"][ch]["rmse"]

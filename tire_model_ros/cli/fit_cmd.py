@@ -9,6 +9,7 @@ into the report folder. Existing files are never replaced without ``--force``.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -17,7 +18,11 @@ HELP = "refit the model from recordings"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "bags", nargs="+", metavar="BAG", help="recording(s): rosbag2 folder or .mcap"
+        "bags",
+        nargs="+",
+        metavar="BAG",
+        help="recording(s): rosbag2 folder or .mcap, or a measurement file imported on the fly "
+        "(.mat/.dat TTC, .tdx TYDEX, .csv)",
     )
     parser.add_argument("--tir", required=True, metavar="START", help="start model (.tir)")
     parser.add_argument("-o", "--output", required=True, metavar="OUT.tir", help="fitted model")
@@ -87,12 +92,12 @@ def run(args: argparse.Namespace) -> int:
 
     from tire_model_ros.fit import FitOptions, fit_recording, write_fit_report
     from tire_model_ros.model import TireModel, write_tir
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import open_recording
 
     start = TireModel.from_file(args.tir)
     wheels = []
     for bag in args.bags:
-        for prefix, series in read_recording(bag).items():
+        for prefix, series in open_recording(bag).items():
             if args.wheel and prefix not in args.wheel:
                 continue
             series.meta = {**(series.meta or {}), "bag": str(bag)}
@@ -112,21 +117,28 @@ def run(args: argparse.Namespace) -> int:
     result = fit_recording(wheels, start, options)
     report_path = write_fit_report(result, report_dir, overwrite=args.force)
     fitted = [st["stage"] for st in result.report["stages"] if st["status"] == "fitted"]
-    if not fitted:
+    note = result.report.get("note")
+    if not fitted and not note:
         reasons = "; ".join(
             f"{st['stage']}: {st.get('reason', st['status'])}" for st in result.report["stages"]
         )
         raise ValueError(
             f"no stage could be fitted, {out} not written ({reasons}); report in {report_path}"
         )
-    write_tir(result.model.tir, out, overwrite=args.force)
+    tir = result.model.tir
+    if note:  # the start model explains the data: it is the result, said in the file
+        tir = dataclasses.replace(
+            tir, path=None, preamble=(*tir.preamble, f"! tire-model fit: {note}")
+        )
+        print(f"note: {note}")
+    write_tir(tir, out, overwrite=args.force)
     held = result.report["metrics"]["overall"]["heldout"]
     summary = ", ".join(
         f"{c} {held['before'][c]['rmse']:.4g} -> {held['after'][c]['rmse']:.4g}"
         for c in result.report["metrics"]["channels"]
         if held["after"][c]["n"] and held["before"][c]["rmse"] != held["after"][c]["rmse"]
     )
-    print(f"wrote {out} (stages: {', '.join(fitted)})")
+    print(f"wrote {out} (stages: {', '.join(fitted) or 'none; the start model'})")
     print(f"report {report_path}")
     if summary:
         print(f"held-out rmse: {summary}")
