@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -235,11 +236,11 @@ class RigBuilder:
 
     def lateral_sweep(
         self,
-        amplitude_deg=10.0,
-        rate_deg_s=3.0,
-        reverse=False,
-        kappa=0.0,
-        label="lateral",
+        amplitude_deg: float = 10.0,
+        rate_deg_s: float = 3.0,
+        reverse: bool = False,
+        kappa: float = 0.0,
+        label: str = "lateral",
         follow: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         """0 -> +A -> -A -> 0 (reverse: 0 -> -A -> +A -> 0) at a constant slip-angle rate.
@@ -546,11 +547,11 @@ TTC_PRESSURES = (1.0, 0.8, 1.2)
 TTC_FOLLOW = (0.05, 0.25)  # load fraction, inclination [deg] at full slip angle
 
 
-def _ttc_pressures(opt: dict) -> tuple[float, ...]:
+def _ttc_pressures(opt: dict[str, Any]) -> tuple[float, ...]:
     return TTC_PRESSURES if opt["vary_pressure"] else TTC_PRESSURES[:1]
 
 
-def _ttc_cornering(b: RigBuilder, opt: dict) -> None:
+def _ttc_cornering(b: RigBuilder, opt: dict[str, Any]) -> None:
     ty, A = b.tyre, opt["amplitude_deg"]
     b.set_state(Fz=ty.FNOMIN, duration_s=1.0)
     for _ in range(2):  # conditioning sweeps at the nominal load
@@ -569,7 +570,7 @@ def _ttc_cornering(b: RigBuilder, opt: dict) -> None:
                     )
 
 
-def _ttc_drive_brake(b: RigBuilder, opt: dict) -> None:
+def _ttc_drive_brake(b: RigBuilder, opt: dict[str, Any]) -> None:
     ty, k = b.tyre, opt["kappa_max"]
     b.set_state(Fz=ty.FNOMIN, duration_s=1.0)
     b.longitudinal_sweep(k, rate_per_s=0.1, label="conditioning")
