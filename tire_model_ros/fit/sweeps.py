@@ -355,7 +355,7 @@ def split_segments(
     raw = [
         _segment(series, states, names, int(s), int(e)) for s, e in zip(starts, ends, strict=True)
     ]
-    return _with_conditions(series, _with_sweeps(series, raw, breaks))
+    return _with_conditions(series, _with_sweeps(series, raw, breaks, grid.min_len))
 
 
 def _segment(
@@ -383,21 +383,23 @@ def _segment(
     return Segment(np.arange(s, e), kind, direction)
 
 
-def _split_at_zero(seg: Segment, x: Floats) -> tuple[Segment, Segment] | None:
+def _split_at_zero(seg: Segment, x: Floats, min_len: int) -> tuple[Segment, Segment] | None:
     """The halves of a ramp that runs from one extreme of its slip through zero to the other
     (the end of one sweep merged with the start of the next, back to back), cut where it
-    crosses zero; None for any other ramp."""
+    crosses zero; None for any other ramp, or if a half would be shorter than ``min_len``."""
     xs = _moving_mean(_fill_nan(x[seg.index]), 5)
     a, b = float(xs[0]), float(xs[-1])
     if a * b >= 0 or min(abs(a), abs(b)) < 0.5 * max(abs(a), abs(b)):
         return None
     cut = int(np.argmax(np.sign(xs) != np.sign(a)))
-    if cut < 2 or cut > len(xs) - 2:
+    if cut < min_len or cut > len(xs) - min_len:
         return None
     return replace(seg, index=seg.index[:cut]), replace(seg, index=seg.index[cut:])
 
 
-def _with_sweeps(series: WheelSeries, segments: Sequence[Segment], breaks: Ints) -> list[Segment]:
+def _with_sweeps(
+    series: WheelSeries, segments: Sequence[Segment], breaks: Ints, min_len: int
+) -> list[Segment]:
     """Number the sweeps: consecutive ramps of the same slip channel(s), at most
     ``MAX_RAMPS_PER_SWEEP`` (0 -> +A -> -A -> 0). A steady hold between two of its ramps (at a
     turning point) stays inside the sweep; a pause, a condition change or a gap in the stamps
@@ -413,7 +415,7 @@ def _with_sweeps(series: WheelSeries, segments: Sequence[Segment], breaks: Ints)
         if seg.kind == "ramp" and seg.slips:
             halves = None
             if current >= 0 and seg.slips == slips and ramps >= MAX_RAMPS_PER_SWEEP - 1:
-                halves = _split_at_zero(seg, getattr(series, slips[0]))
+                halves = _split_at_zero(seg, getattr(series, slips[0]), min_len)
             if halves is not None:
                 out.append(replace(halves[0], sweep=current))
                 seg = halves[1]
