@@ -34,7 +34,7 @@ bench: venv
 	$(PY) bench/bench_fit.py
 
 proof: venv
-	$(PY) bench/proof.py
+	$(PY) bench/proof.py --jobs 2
 
 lint: venv
 	$(VENV)/bin/ruff check tire_model_ros test bench realities

@@ -10,19 +10,28 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tire_model_ros.diagnosis.thermal import thermal_state_K
+from tire_model_ros.diagnosis.dynamics import first_order, thermal_state_K
 from tire_model_ros.model import TireModel
-from tire_model_ros.model.states import Effects, EffectsError, EffectState, Node, WheelEffects
+from tire_model_ros.model.states import (
+    Effects,
+    EffectsError,
+    EffectState,
+    Node,
+    WheelEffects,
+    sidewall_factor,
+)
 
 TIR = Path(__file__).resolve().parents[1] / "config" / "default.tir"
 FULL = WheelEffects(
     T_amb_C=20.0,
     thermal=Node(3.0, 2e-3),
-    bulk=Node(120.0, 1e-5),
-    bulk_mu_loss=0.4,
+    thermal_slow=Node(120.0, 1e-3),
+    thermal_slow_start_K=6.0,
     gas=Node(60.0, 1e-3),
     offsets={"Fy": (12.0, 150.0), "Mz": (-1.5, 0.0)},
+    alpha_shift_rad=0.002,
     speed_table=((-2.0, 0.0, 1.0), (0.8, 1.0, 0.9)),
+    sidewall=(1.5, 0.1, 2.0),
 )
 
 
@@ -33,9 +42,14 @@ def test_nodes_step_as_the_diagnosis_integrates_them():
     t = np.cumsum(rng.uniform(0.005, 0.03, 400))
     t[200:] += 5.0  # a pause
     P = rng.uniform(0.0, 4000.0, 400)
-    fx = WheelEffects(thermal=Node(2.5, 3e-3), bulk=Node(90.0, 2e-5), gas=Node(40.0, 5e-4))
+    fx = WheelEffects(
+        thermal=Node(2.5, 3e-3),
+        thermal_slow=Node(90.0, 2e-3),
+        thermal_slow_start_K=4.0,
+        gas=Node(40.0, 5e-4),
+    )
     st = EffectState(fx)
-    got = {k: [] for k in ("thermal", "bulk", "gas")}
+    got = {k: [] for k in ("thermal", "thermal_slow", "gas")}
     for ti, Pi in zip(t, P, strict=True):
         st.inputs(float(ti), 0.1, 0.0, 10.0, 30.0, 2.5e5, 2.6e5, 25.0)
         for k in got:
@@ -43,35 +57,46 @@ def test_nodes_step_as_the_diagnosis_integrates_them():
         st.outputs((Pi, 0.0, 5000.0, 0.0, 0.0, 0.0), 1.0, 5000.0, 0.1, 0.0, 10.0, 5000.0)
     for k in got:  # |Fx V kappa| = P with V kappa = 1
         node = getattr(fx, k)
-        want = thermal_state_K(P, t, node.tau_s, node.gain_per_W)
+        y0 = fx.thermal_slow_start_K if k == "thermal_slow" else 0.0
+        want = first_order(node.gain_per_W * P, t, node.tau_s, y0)
         np.testing.assert_allclose(got[k], want, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(  # the diagnosis' node from rest is the same integration
+        thermal_state_K(P, t, 2.5, 3e-3), first_order(3e-3 * P, t, 2.5), rtol=0, atol=0
+    )
 
 
 def test_inputs_and_outputs_follow_the_effects():
-    """Measured channels pass; missing ones take the hidden nodes; friction scales by the
-    similarity method; offsets add, their load part in proportion to Fz / FNOMIN."""
+    """Measured channels pass; missing ones take the hidden nodes (tread plus carcass); the
+    ply-steer shift adds to alpha; friction scales by the similarity method; Fy takes the
+    sidewall factor of the sample's deflection; offsets add, their load part in proportion
+    to Fz / FNOMIN."""
     model = TireModel.from_file(TIR)
     st = EffectState(FULL)
-    st.y.update(thermal=15.0, bulk=0.25, gas=8.0)
+    st.y.update(thermal=15.0, thermal_slow=5.0, gas=8.0)
     st.t_last = 1.0
-    kappa, alpha, Vx, Fz = 0.04, math.radians(3.0), 12.0, 5000.0
+    kappa, alpha, Vx, Fz = 0.04, math.radians(9.0), 12.0, 5000.0
     st.P_last = 0.0  # no heating over the next step: the states only decay
-    k, a, T, p, s = st.inputs(1.0, kappa, alpha, Vx, None, None, 2.6e5, 25.0)
-    assert T == 20.0 + 15.0
+    k, a, T, p, s = st.inputs(1.0, kappa, alpha, Vx, None, None, 2.6e5, 25.0, Fz / 3000.0)
+    assert T == 20.0 + 15.0 + 5.0
     assert p == pytest.approx((2.6e5 + 101325.0) * (293.15 + 8.0) / 293.15 - 101325.0)
-    Vs = Vx * math.hypot(kappa, math.tan(alpha))
-    s_want = (1 - 0.4 * 0.25) * float(np.interp(math.log(Vs), [-2.0, 0.0, 1.0], [0.8, 1.0, 0.9]))
+    a_in = alpha + 0.002
+    Vs = Vx * math.hypot(kappa, math.tan(a_in))
+    s_want = float(np.interp(math.log(Vs), [-2.0, 0.0, 1.0], [0.8, 1.0, 0.9]))
     assert s == pytest.approx(s_want, rel=1e-12)
-    assert (k, math.tan(a)) == pytest.approx((kappa / s, math.tan(alpha) / s), rel=1e-12)
+    assert (k, math.tan(a)) == pytest.approx((kappa / s, math.tan(a_in) / s), rel=1e-12)
     assert st.inputs(1.0, kappa, alpha, Vx, 42.0, 2.2e5, 2.6e5, 25.0)[2:4] == (42.0, 2.2e5)
+    k, a, T, p, s = st.inputs(1.0, kappa, alpha, Vx, None, 1.0e5, 2.6e5, 25.0, Fz / 3000.0)
     raw = model.evaluate_one(Fz, k, a, 0.0, Vx, p, T)
-    out = st.outputs(raw, s, Fz, kappa, alpha, Vx, 6000.0)
+    out = st.outputs(raw, s, Fz, kappa, alpha, Vx, 3000.0)
+    rho = (Fz / 3000.0) / ((1.0e5 + 101325.0) / (2.6e5 + 101325.0))
+    side = sidewall_factor(rho, a_in, (1.5, 0.1, 2.0))
+    assert side < 0.95  # deflected past the threshold, beyond alpha_c: the drop acts
     assert out[0] == pytest.approx(raw[0] * s)
-    assert out[1] == pytest.approx(raw[1] * s + 12.0 + 150.0 * Fz / 6000.0)
+    assert out[1] == pytest.approx(raw[1] * s * side + 12.0 + 150.0 * Fz / 3000.0)
     assert out[5] == pytest.approx(raw[5] * s - 1.5)
     assert out[2:5] == raw[2:5]
     assert st.P_last == pytest.approx(abs(out[0] * Vx * kappa) + abs(out[1] * Vx * math.tan(alpha)))
-    st.outputs((math.nan,) * 6, 1.0, Fz, kappa, alpha, Vx, 6000.0)
+    st.outputs((math.nan,) * 6, 1.0, Fz, kappa, alpha, Vx, 3000.0)
     assert math.isfinite(st.P_last)  # a bad sample does not poison the states
     st.idle(2.0)  # off the ground: the last power is held over this step, then none
     y0 = st.y["thermal"]
@@ -95,10 +120,13 @@ def test_effects_file_round_trip(tmp_path):
     ("mangle", "words"),
     [
         (lambda d: d.update(format="x"), ["format"]),
-        (lambda d: d.update(version=2), ["version"]),
+        (lambda d: d.update(version=3), ["version"]),
         (lambda d: d.update(wheels={}), ["wheels"]),
         (lambda d: d["wheels"]["/w"]["thermal"].update(tau_s=-1.0), ["wheels./w.thermal.tau_s"]),
-        (lambda d: d["wheels"]["/w"]["bulk"].pop("mu_loss"), ["wheels./w.bulk.mu_loss"]),
+        (lambda d: d["wheels"]["/w"]["thermal_slow"].pop("start_K"), ["thermal_slow.start_K"]),
+        (lambda d: d["wheels"]["/w"].update(bulk={"tau_s": 1}), ["wheels./w.bulk"]),
+        (lambda d: d["wheels"]["/w"]["sidewall"].pop("drop_per_rad"), ["sidewall.drop_per_rad"]),
+        (lambda d: d["wheels"]["/w"].update(alpha_shift_rad="x"), ["alpha_shift_rad"]),
         (lambda d: d["wheels"]["/w"]["offsets"].update(Fq={"N": 1}), ["offsets.Fq"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(ln_Vs=[1, 0, 2]), ["speed_table"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(mu=[1, -1, 1]), ["speed_table"]),

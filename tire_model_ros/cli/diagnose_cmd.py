@@ -66,10 +66,11 @@ def effects_path(tir_path: str | os.PathLike) -> Path:
     return Path(tir_path).with_suffix(".effects.json")
 
 
-def improved_tir(diag, source_tir):
-    """TirData of the improved model: fitted coefficients, effect parameters as comments."""
-    notes = ["! tire-model diagnose: improved model (fitted coefficients below)."]
-    for e in diag.effects:
+def improved_tir(wd, source_tir):
+    """TirData of one wheel's improved model: fitted coefficients, effect parameters as
+    comments."""
+    notes = [f"! tire-model diagnose: improved model of {wd.prefix} (fitted coefficients below)."]
+    for e in wd.effects:
         if e.name == "none":
             continue
         params = ", ".join(f"{k} = {v:.6g}" for k, v in e.parameters.items())
@@ -77,9 +78,35 @@ def improved_tir(diag, source_tir):
     return dataclasses.replace(
         source_tir,
         path=None,
-        params=dict(diag.improved_model.params),
+        params=dict(wd.improved_model.params),
         preamble=(*source_tir.preamble, *notes),
     )
+
+
+def tir_paths(diag, out_tir: str | os.PathLike) -> dict[str, Path]:
+    """Where each wheel's improved .tir goes: OUT itself for one wheel; for several,
+    ``OUT.<wheel>.tir`` each (``improved.tir`` -> ``improved.car_fl.tir``)."""
+    out = Path(out_tir)
+    if len(diag.wheels) == 1:
+        return {next(iter(diag.wheels)): out}
+    return {p: out.with_suffix(f".{_slug(p)}.tir") for p in diag.wheels}
+
+
+def _slug(prefix: str) -> str:
+    return prefix.strip("/").replace("/", "_") or "wheel"
+
+
+def node_params(diag, tirs: dict[str, Path], effects: Path) -> str:
+    """A node parameter file that runs the improved model of every wheel (several wheels)."""
+    lines = ["tire_model_node:", "  ros__parameters:", f"    wheels: {list(diag.wheels)}"]
+    lines += [
+        f"    tir_file: {tirs[next(iter(diag.wheels))].name}",
+        f"    effects_file: {effects.name}",
+    ]
+    for p, path in tirs.items():
+        key = p.strip("/").split("/")
+        lines += [f"    {'.'.join(key)}.tir_file: {path.name}"]
+    return "\n".join(lines) + "\n"
 
 
 def run(args) -> int:
@@ -144,18 +171,17 @@ def run(args) -> int:
         path = write_report(diag, wheels, args.report, overwrite=args.force, source=str(args.bag))
         print(f"wrote {path}")
     if out_tir:
-        write_tir(
-            improved_tir(diag, model.tir),
-            out_tir,
-            overwrite=args.force or bool(args.report and not args.out_tir),
-        )
-        print(f"wrote {out_tir}")
+        again = args.force or bool(args.report and not args.out_tir)
+        tirs = tir_paths(diag, out_tir)
+        for prefix, path in tirs.items():
+            write_tir(improved_tir(diag.wheels[prefix], model.tir), path, overwrite=again)
+            print(f"wrote {path}")
         effects = diag.node_effects(Path(out_tir).name)
-        write_atomic(
-            out_effects,
-            effects.to_json(),
-            overwrite=args.force or bool(args.report and not args.out_tir),
-        )
+        write_atomic(out_effects, effects.to_json(), overwrite=again)
+        if len(tirs) > 1:
+            yaml_path = Path(out_tir).with_suffix(".node.yaml")
+            write_atomic(yaml_path, node_params(diag, tirs, out_effects), overwrite=again)
+            print(f"wrote {yaml_path} (tire-model-node --ros-args --params-file {yaml_path})")
         print(
             f"wrote {out_effects} (hidden states for the node's effects_file"
             + (f"; not carried: {'; '.join(effects.not_carried)})" if effects.not_carried else ")")

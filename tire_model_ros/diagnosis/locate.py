@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..fit.sweeps import noise_sigma
-from .candidates import Context
+from .prepare import Context
 
 PAUSE_KINDS = ("pause",)
 
@@ -38,23 +38,23 @@ def _span(t: np.ndarray) -> str:
     return f"t = {t[0]:.0f}-{t[-1]:.0f} s" if len(t) else "nowhere"
 
 
-def channel_summary(ctx: Context, resid: dict[int, dict[str, np.ndarray]], ch: str) -> dict:
-    """Numbers and words locating the residual of one channel (all wheels pooled)."""
+def channel_summary(ctx: Context, resid: dict[str, np.ndarray], ch: str) -> dict:
+    """Numbers and words locating the residual ``resid[ch]`` of one channel."""
     slip_key = "alpha" if ch in ("Fy", "Mz") else "kappa"
     unit = "deg" if slip_key == "alpha" else ""
     r_all, slip_all, seg_rms, seg_t, out_back = [], [], [], [], {"out": [], "back": []}
     e_seg, fz_all, v_all = [], [], []
-    for wi, w in enumerate(ctx.wheels):
-        if ch not in w.meas:
+    for w in [ctx.wheel]:
+        if ch not in w.meas or ch not in resid:
             continue
-        r = resid[wi][ch]
+        r = resid[ch]
         slip = w.inputs[slip_key]
         r_all.append(r)
         slip_all.append(np.abs(slip))
         fz_all.append(w.inputs["Fz"])
         v_all.append(w.inputs["V"])
         sgn = np.sign(w.meas[ch])
-        for si, seg in enumerate(w.segments):
+        for seg in w.segments:
             idx = seg.index
             rr = r[idx]
             seg_rms.append(float(np.sqrt(np.nanmean(rr**2))))
@@ -69,7 +69,6 @@ def channel_summary(ctx: Context, resid: dict[int, dict[str, np.ndarray]], ch: s
                     out_back[key].append(np.nanmean((rr * sgn[idx])[big]))
             if seg.kind != "pause":
                 e_seg.append((w.E[idx[0]], float(np.nanmean(rr * sgn[idx]))))
-            del si
     if not r_all:
         return {}
     r = np.concatenate(r_all)
@@ -116,7 +115,7 @@ def channel_summary(ctx: Context, resid: dict[int, dict[str, np.ndarray]], ch: s
     zero = np.concatenate(
         [
             (np.abs(w.inputs["kappa"]) < 5e-3) & (np.abs(w.inputs["alpha"]) < np.radians(0.3))
-            for w in ctx.wheels
+            for w in [ctx.wheel]
             if ch in w.meas
         ]
     )

@@ -141,7 +141,16 @@ def effect_sentence(effect: Any) -> str:
         sigmas = dict(_get(effect, "uncertainty", {}) or {})
         state = "concealed: no channel for it in the recording" if concealed else "not concealed"
         fitted = ", ".join(fmt_param(k, float(v), sigmas.get(k)) for k, v in params.items())
-        lead = f"**{name}** ({state}) in {channel}; " + (
+        explained = _get(effect, "explained")
+        share = (
+            f"explains {float(explained):.0%} of the baseline's held-out mean square error "
+            "of Fx and Fy; "
+            if explained is not None and np.isfinite(explained)
+            else ""
+        )
+        wheels = _get(effect, "wheels", []) or []
+        on = f" on {', '.join(f'`{w}`' for w in wheels)}" if wheels else ""
+        lead = f"**{name}** ({state}) in {channel}{on}; {share}" + (
             f"fitted {fitted} (± one sigma)." if fitted else "no parameters fitted."
         )
     lines = [lead]
@@ -204,6 +213,13 @@ def _markdown(
     lines += [summary_line(effects), ""]
     lines += ["## Effects", ""]
     lines += [f"{i}. {effect_sentence(e)}" for i, e in enumerate(effects, 1)] or ["(none listed)"]
+    per_wheel = _get(diag, "wheels", {}) or {}
+    if len(per_wheel) > 1:  # a car: each wheel's own diagnosis under the summary
+        lines += ["", "### Per wheel", ""]
+        for prefix, wd in per_wheel.items():
+            found = [e for e in _get(wd, "effects", []) if _get(e, "name") != "none"]
+            lines.append(f"- `{prefix}`: {summary_line(found)}")
+            lines += [f"   {i}. {effect_sentence(e)}" for i, e in enumerate(found, 1)]
     lines += ["", "## Fit", ""]
     lines += fit_table(fit)
     lines += [

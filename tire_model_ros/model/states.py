@@ -1,12 +1,13 @@
 """Hidden states of an improved model, run forward one sample at a time (no ROS).
 
-``tire-model diagnose`` fits effects that a .tir file cannot hold: a hidden tread-temperature
-node, a slow carcass node lowering grip, a hidden gas node, force offsets, friction against
-sliding speed. It writes them beside the improved .tir as an *effects file* (JSON, one entry per
-wheel); the node runs them per wheel with :class:`EffectState`, so a simulation with the
-improved model heats the tyre as the diagnosis found it did.
+``tire-model diagnose`` fits effects that a .tir file cannot hold: hidden tread and carcass
+thermal nodes, a hidden gas node, force offsets and a ply-steer slip-angle shift, friction
+against sliding speed, a sidewall-contact force drop. It writes them beside the improved .tir
+as an *effects file* (JSON, one entry per wheel); the node runs them per wheel with
+:class:`EffectState`, so a simulation with the improved model heats the tyre as the diagnosis
+found it did.
 
-The forms are the diagnosis' (:mod:`tire_model_ros.diagnosis.candidates`): each node is
+The forms are the diagnosis' (:mod:`tire_model_ros.diagnosis.effects`): each node is
 ``y' = (k P_fric - y) / tau``, stepped exactly for the power held over the step; friction
 scales by the similarity method (Pacejka 2012 §4.3.2). One difference, by necessity: the
 diagnosis drives the nodes with the frictional power of the *measured* forces, a forward model
@@ -21,14 +22,17 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 FORMAT = "tire_model_ros.effects"
-VERSION = 1
+VERSION = 2
+READS = (1, 2)  # version 1 (no slow node, shift or sidewall) reads as a subset of 2
 P_ATM_PA = 101325.0  # standard atmosphere [Pa], gauge -> absolute
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
+NODES = ("thermal", "thermal_slow", "gas")
 
 
 @dataclass(frozen=True)
@@ -44,25 +48,37 @@ class WheelEffects:
     """The effects of one wheel (None: not part of the model)."""
 
     T_amb_C: float = 25.0
-    thermal: Node | None = None  # tread temperature [K above T_amb_C] -> the T input
-    bulk: Node | None = None  # carcass state [-]; grip scales by 1 - bulk_mu_loss * state
-    bulk_mu_loss: float = 0.0
+    thermal: Node | None = None  # tread surface [K above T_amb_C] -> the T input
+    thermal_slow: Node | None = None  # carcass [K], added to the tread's -> the T input
+    thermal_slow_start_K: float = 0.0  # the carcass node's state at the start (pre-warmed)
     gas: Node | None = None  # gas temperature [K above T_amb_C] -> gas law -> the p input
     offsets: dict[str, tuple[float, float]] = field(default_factory=dict)  # ch: (N, N at FNOMIN)
+    alpha_shift_rad: float = 0.0  # ply-steer as a slip-angle shift, added to alpha
     speed_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (ln Vs, mu)
+    # Fy * (1 - drop gate(rho) max(|alpha| - alpha_c, 0)), rho the relative deflection
+    sidewall: tuple[float, float, float] | None = None  # (rho threshold, alpha_c rad, drop/rad)
 
-    def to_dict(self) -> dict:
-        d: dict = {"T_amb_C": self.T_amb_C}
-        for name in ("thermal", "bulk", "gas"):
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"T_amb_C": self.T_amb_C}
+        for name in NODES:
             node = getattr(self, name)
             if node is not None:
                 d[name] = {"tau_s": node.tau_s, "gain_per_W": node.gain_per_W}
-        if self.bulk is not None:
-            d["bulk"]["mu_loss"] = self.bulk_mu_loss
+        if self.thermal_slow is not None:
+            d["thermal_slow"]["start_K"] = self.thermal_slow_start_K
         if self.offsets:
             d["offsets"] = {ch: {"N": a, "N_at_FNOMIN": b} for ch, (a, b) in self.offsets.items()}
+        if self.alpha_shift_rad:
+            d["alpha_shift_rad"] = self.alpha_shift_rad
         if self.speed_table is not None:
             d["speed_table"] = {"ln_Vs": list(self.speed_table[0]), "mu": list(self.speed_table[1])}
+        if self.sidewall is not None:
+            th, a_c, drop = self.sidewall
+            d["sidewall"] = {
+                "deflection_threshold": th,
+                "alpha_contact_rad": a_c,
+                "drop_per_rad": drop,
+            }
         return d
 
 
@@ -109,8 +125,8 @@ class Effects:
     def from_dict(cls, doc: object, where: str = "effects") -> Effects:
         if not isinstance(doc, Mapping) or doc.get("format") != FORMAT:
             raise EffectsError(f"{where}: key 'format' must be {FORMAT!r}")
-        if doc.get("version") != VERSION:
-            raise EffectsError(f"{where}: key 'version' must be {VERSION}")
+        if doc.get("version") not in READS:
+            raise EffectsError(f"{where}: key 'version' must be one of {READS}")
         wheels = doc.get("wheels")
         if not isinstance(wheels, Mapping) or not wheels:
             raise EffectsError(f"{where}: key 'wheels' must map wheel prefixes to effects")
@@ -121,7 +137,7 @@ class Effects:
         return cls(out, str(doc.get("tir", "")), tuple(map(str, not_carried)))
 
 
-def _number(d: Mapping, key: str, where: str, lo: float = -math.inf) -> float:
+def _number(d: Mapping[str, Any], key: str, where: str, lo: float = -math.inf) -> float:
     v = d.get(key)
     if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < lo:
         raise EffectsError(f"{where}.{key}: expected a finite number >= {lo:g}, got {v!r}")
@@ -134,42 +150,87 @@ def _node(d: object, where: str) -> Node:
     return Node(_number(d, "tau_s", where, 0.0), _number(d, "gain_per_W", where))
 
 
-def _wheel(d: object, where: str) -> WheelEffects:
+def _offsets(d: object, where: str) -> dict[str, tuple[float, float]]:
     if not isinstance(d, Mapping):
-        raise EffectsError(f"{where}: expected an object")
-    nodes = {k: _node(d[k], f"{where}.{k}") for k in ("thermal", "bulk", "gas") if k in d}
-    loss = _number(d["bulk"], "mu_loss", f"{where}.bulk") if "bulk" in d else 0.0
-    offsets = {}
-    if not isinstance(d.get("offsets", {}), Mapping):
-        raise EffectsError(f"{where}.offsets: expected an object of channels")
-    for ch, o in d.get("offsets", {}).items():
+        raise EffectsError(f"{where}: expected an object of channels")
+    out = {}
+    for ch, o in d.items():
         if ch not in ("Fx", "Fy", "Mz") or not isinstance(o, Mapping):
-            raise EffectsError(f"{where}.offsets.{ch}: expected Fx, Fy or Mz with N, N_at_FNOMIN")
-        w = f"{where}.offsets.{ch}"
-        offsets[ch] = (_number(o, "N", w), _number(o, "N_at_FNOMIN", w))
-    table = None
-    if "speed_table" in d:
-        t, w = d["speed_table"], f"{where}.speed_table"
-        try:
-            lnV, mu = tuple(map(float, t["ln_Vs"])), tuple(map(float, t["mu"]))
-        except (TypeError, KeyError, ValueError):
-            raise EffectsError(f"{w}: expected lists ln_Vs and mu") from None
-        if len(lnV) < 2 or len(lnV) != len(mu) or any(b <= a for a, b in itertools.pairwise(lnV)):
-            raise EffectsError(f"{w}: ln_Vs must rise, with one mu per knot (2 or more)")
-        if not all(math.isfinite(v) and v > 0 for v in mu) or not all(map(math.isfinite, lnV)):
-            raise EffectsError(f"{w}: values must be finite, mu > 0")
-        table = (lnV, mu)
-    T_amb = _number(d, "T_amb_C", where, -T_ABS0_C) if "T_amb_C" in d else 25.0
-    return WheelEffects(
-        T_amb, nodes.get("thermal"), nodes.get("bulk"), loss, nodes.get("gas"), offsets, table
+            raise EffectsError(f"{where}.{ch}: expected Fx, Fy or Mz with N, N_at_FNOMIN")
+        out[ch] = (_number(o, "N", f"{where}.{ch}"), _number(o, "N_at_FNOMIN", f"{where}.{ch}"))
+    return out
+
+
+def _table(t: Any, w: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    try:
+        lnV, mu = tuple(map(float, t["ln_Vs"])), tuple(map(float, t["mu"]))
+    except (TypeError, KeyError, ValueError):
+        raise EffectsError(f"{w}: expected lists ln_Vs and mu") from None
+    if len(lnV) < 2 or len(lnV) != len(mu) or any(b <= a for a, b in itertools.pairwise(lnV)):
+        raise EffectsError(f"{w}: ln_Vs must rise, with one mu per knot (2 or more)")
+    if not all(math.isfinite(v) and v > 0 for v in mu) or not all(map(math.isfinite, lnV)):
+        raise EffectsError(f"{w}: values must be finite, mu > 0")
+    return lnV, mu
+
+
+def _sidewall(d: object, w: str) -> tuple[float, float, float]:
+    if not isinstance(d, Mapping):
+        raise EffectsError(f"{w}: expected deflection_threshold, alpha_contact_rad, drop_per_rad")
+    return (
+        _number(d, "deflection_threshold", w, 0.0),
+        _number(d, "alpha_contact_rad", w, 0.0),
+        _number(d, "drop_per_rad", w, 0.0),
     )
 
 
-def gas_pressure_Pa(p0_gauge_Pa, rise_K, T0_C: float):
+def _wheel(d: object, where: str) -> WheelEffects:
+    if not isinstance(d, Mapping):
+        raise EffectsError(f"{where}: expected an object")
+    if "bulk" in d:
+        raise EffectsError(
+            f"{where}.bulk: the version 1 grip node is no longer run; rerun diagnose"
+        )
+    nodes = {k: _node(d[k], f"{where}.{k}") for k in NODES if k in d}
+    start = (
+        _number(d["thermal_slow"], "start_K", f"{where}.thermal_slow")
+        if "thermal_slow" in d
+        else 0.0
+    )
+    return WheelEffects(
+        T_amb_C=_number(d, "T_amb_C", where, -T_ABS0_C) if "T_amb_C" in d else 25.0,
+        thermal=nodes.get("thermal"),
+        thermal_slow=nodes.get("thermal_slow"),
+        thermal_slow_start_K=start,
+        gas=nodes.get("gas"),
+        offsets=_offsets(d.get("offsets", {}), f"{where}.offsets"),
+        alpha_shift_rad=_number(d, "alpha_shift_rad", where) if "alpha_shift_rad" in d else 0.0,
+        speed_table=_table(d["speed_table"], f"{where}.speed_table")
+        if "speed_table" in d
+        else None,
+        sidewall=_sidewall(d["sidewall"], f"{where}.sidewall") if "sidewall" in d else None,
+    )
+
+
+def gas_pressure_Pa(p0_gauge_Pa: Any, rise_K: Any, T0_C: float) -> Any:
     """Gauge pressure at constant volume after a gas-temperature rise: p_abs ~ T_abs (numbers
     or arrays; the diagnosis' gas node and the node's use this one form)."""
     p0_abs = p0_gauge_Pa + P_ATM_PA
     return p0_abs * (T0_C + T_ABS0_C + rise_K) / (T0_C + T_ABS0_C) - P_ATM_PA
+
+
+def relative_deflection(Fz: Any, FNOMIN: float, p_gauge_Pa: Any, p_nom_Pa: float) -> Any:
+    """Tyre deflection relative to the nominal one, ~ (Fz / FNOMIN) / (p_abs / p_nom_abs): the
+    load a given inflation pressure has to carry (the gate of sidewall contact)."""
+    ratio = (np.maximum(p_gauge_Pa, -0.9 * P_ATM_PA) + P_ATM_PA) / (p_nom_Pa + P_ATM_PA)
+    return (Fz / FNOMIN) / np.maximum(ratio, 0.05)
+
+
+def sidewall_factor(rho: Any, alpha_rad: Any, params: tuple[float, float, float]) -> Any:
+    """The Fy factor of sidewall contact: 1 - drop g(rho) max(|alpha| - alpha_c, 0), g a
+    logistic gate of width 5 % of the threshold."""
+    th, a_c, drop = params
+    gate = 1.0 / (1.0 + np.exp(-np.clip((rho - th) / (0.05 * th), -50.0, 50.0)))
+    return np.maximum(1.0 - drop * gate * np.maximum(np.abs(alpha_rad) - a_c, 0.0), 0.0)
 
 
 class EffectState:
@@ -194,7 +255,8 @@ class EffectState:
     def reset(self) -> None:
         self.t_last: float | None = None
         self.P_last = 0.0  # frictional power held over the step [W]
-        self.y = {"thermal": 0.0, "bulk": 0.0, "gas": 0.0}
+        self.y = {"thermal": 0.0, "thermal_slow": self.fx.thermal_slow_start_K, "gas": 0.0}
+        self._rho = 1.0  # relative deflection of the current sample
 
     def _step(self, t_s: float) -> None:
         dt = 0.0 if self.t_last is None else max(t_s - self.t_last, 0.0)
@@ -217,7 +279,8 @@ class EffectState:
 
     @property
     def temperature_C(self) -> float:
-        return self.fx.T_amb_C + self.y["thermal"]
+        """The hidden tread temperature: ambient plus the tread and carcass nodes."""
+        return self.fx.T_amb_C + self.y["thermal"] + self.y["thermal_slow"]
 
     def inputs(
         self,
@@ -229,12 +292,13 @@ class EffectState:
         p_Pa: float | None,
         p_nom: float,
         T_nom: float,
+        Fz_over_FNOMIN: float = 1.0,
     ) -> tuple[float, float, float, float, float]:
         """(kappa, alpha, T, p, s) for the model at ``t_s`` [s]; s is the friction scale.
 
         A temperature ``T_C`` [degC] or gauge pressure ``p_Pa`` that is None (not measured)
-        takes the hidden tread node, or the gas law on ``p_nom`` with the hidden gas node; the
-        nominal value when the effects have no such node.
+        takes the hidden thermal nodes, or the gas law on ``p_nom`` with the hidden gas node;
+        the nominal value when the effects have no such node.
         """
         self._step(t_s)
         fx = self.fx
@@ -246,9 +310,9 @@ class EffectState:
             p = p_nom
             if fx.gas is not None:
                 p = gas_pressure_Pa(p_nom, self.y["gas"], fx.T_amb_C)
+        self._rho = float(relative_deflection(Fz_over_FNOMIN, 1.0, p, p_nom))
+        alpha = alpha + fx.alpha_shift_rad
         s = 1.0
-        if fx.bulk is not None:
-            s *= 1.0 - fx.bulk_mu_loss * self.y["bulk"]
         if self._table is not None:
             Vs = abs(Vx) * math.hypot(kappa, math.tan(alpha))
             s *= float(np.interp(math.log(max(Vs, 1e-4)), *self._table))
@@ -259,7 +323,7 @@ class EffectState:
 
     def evaluate(
         self,
-        model,
+        model: Any,
         t_s: float,
         Fz: float,
         kappa: float,
@@ -275,7 +339,8 @@ class EffectState:
     ) -> tuple[float, ...]:
         """One sample of the improved model: :meth:`inputs`, ``model.evaluate_one`` at them,
         :meth:`outputs` (Fx, Fy, Fz, Mx, My, Mz). What the node computes per slip message."""
-        k, a, T, p, s = self.inputs(t_s, kappa, alpha, Vx, T_C, p_Pa, p_nom, T_nom)
+        load = Fz / FNOMIN if FNOMIN > 0 else 0.0
+        k, a, T, p, s = self.inputs(t_s, kappa, alpha, Vx, T_C, p_Pa, p_nom, T_nom, load)
         out = model.evaluate_one(Fz, k, a, gamma, Vx, p, T, limits=limits)
         return self.outputs(out, s, Fz, kappa, alpha, Vx, FNOMIN)
 
@@ -293,11 +358,16 @@ class EffectState:
         Vx: float,
         FNOMIN: float,
     ) -> tuple[float, ...]:
-        """(Fx, Fy, Fz, Mx, My, Mz) scaled by s (Fx, Fy, Mz), with the offsets (their load
-        part in proportion to Fz / FNOMIN); its frictional power |Fx V kappa| +
-        |Fy V tan(alpha)| (the slips before the similarity method) drives the next step."""
+        """(Fx, Fy, Fz, Mx, My, Mz) scaled by s (Fx, Fy, Mz), Fy by the sidewall factor, with
+        the offsets (their load part in proportion to Fz / FNOMIN); its frictional power
+        |Fx V kappa| + |Fy V tan(alpha)| (the slips before the similarity method) drives the
+        next step."""
         Fx, Fy, Fz_o, Mx, My, Mz = out
         Fx, Fy, Mz = Fx * s, Fy * s, Mz * s
+        if self.fx.sidewall is not None:
+            Fy *= float(
+                sidewall_factor(self._rho, alpha + self.fx.alpha_shift_rad, self.fx.sidewall)
+            )
         load = Fz / FNOMIN if FNOMIN > 0 else 0.0
         Fx, Fy, Mz = (v + self._offset(ch, load) for ch, v in (("Fx", Fx), ("Fy", Fy), ("Mz", Mz)))
         P = abs(Fx * Vx * kappa) + abs(Fy * Vx * math.tan(alpha))

@@ -1,0 +1,157 @@
+"""The shape of an effect model: what the selection engine needs to know of one physics.
+
+An effect model adds a few bounded parameters to the recording's model and acts in one or
+more of four places, which the predictor (:mod:`..predict`) composes:
+
+- ``coef``: updates of Magic Formula coefficients (TTX/TTY, camber, combined slip ...), global
+  for the session;
+- ``inputs``: transformed model inputs (a hidden temperature or pressure, lagged or delayed
+  slip);
+- ``mu_scale``: a per-sample friction scale (wear, sliding-speed friction, a friction step),
+  applied by the similarity method;
+- ``output``: additive force offsets, or a force factor (sidewall contact).
+
+Beyond its equations, an effect model says where in the operating range it can show
+(``support``), which simpler models it must beat to be believed (``controls``: a memoryless
+twin, a time-scrambled driver, a plain time trend), whether it is a constant physics of the
+session (``stable``: fitted on two independent parts of it, it does the same to the forces), and
+what a forward model carries of it (``carry``, the node's effects file). The engine never asks
+which effect it is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import numpy.typing as npt
+
+from ..prepare import Context
+
+Array = npt.NDArray[np.float64]
+Mask = npt.NDArray[np.bool_]
+Index = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter: start, physical bounds and typical scale (for the optimiser); one that
+    is not ``fitted`` is set by the model's ``settle`` after the fit."""
+
+    name: str
+    x0: float
+    lo: float
+    hi: float
+    scale: float
+    fitted: bool = True
+
+
+class EffectModel:
+    """A model of one missing physics (``word``: the INTERFACE.md name it is reported by)."""
+
+    word: ClassVar[str] = ""
+    label: str = ""  # which model of the word this is
+    concealed: bool = False  # fitted without the channel that would show it
+    # A physics of the session does the same to the forces fitted on either selection fold
+    # (``stable``) and on the early or the late half (``stable_in_time``; not a step, nor a
+    # state that the first half sees rise and the second sees saturate).
+    stable = True
+    stable_in_time = True
+
+    def __init__(self, params: list[Param], starts: list[dict[str, float]] | None = None):
+        self.params = params
+        self.starts = starts or []  # alternative starts of the non-convex parameters
+
+    # --- what the engine asks ------------------------------------------------------------
+
+    @classmethod
+    def propose(cls, ctx: Context) -> list[EffectModel]:
+        """The models of this kind the recording can tell anything about ([]: none)."""
+        return []
+
+    def support(self, ctx: Context) -> Mask | None:
+        """Samples where this physics can change the forces (None: anywhere). Most of what it
+        gains on held-out sweeps must come from there: a gain made elsewhere is the refitted
+        baseline standing in for another effect."""
+        return None
+
+    def controls(self, ctx: Context) -> list[EffectModel]:
+        """Simpler models of the same mismatch that this one must predict better than."""
+        return []
+
+    # --- the model ----------------------------------------------------------------------
+
+    def coef(self, x: Array, ctx: Context) -> dict[str, float]:
+        return {}
+
+    def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+        return None
+
+    def mu_scale(self, x: Array, ctx: Context) -> Array | None:
+        return None
+
+    def output(self, x: Array, ctx: Context, out: dict[str, Array], rows: Index) -> None:
+        return None
+
+    def penalty(self, x: Array, ctx: Context) -> Array:
+        """Residuals (noise units) that hold the model inside its physics where bounds on its
+        parameters cannot (e.g. a grip factor that must stay positive over the temperatures
+        it is applied to); zero when it is. Added to the fit's residuals, not to scores."""
+        return np.zeros(0)
+
+    def settle(self, x: Array, ctx: Context, rows: Index) -> Array:
+        """``x`` with any parameter the fit's ``rows`` leave undetermined set to a neutral
+        value (after the fit has converged on ``rows``)."""
+        return x
+
+    def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
+        """What a forward model runs of this effect, as keyword arguments of
+        :class:`~tire_model_ros.model.states.WheelEffects` ({}: nothing beyond the .tir
+        coefficients); None: nothing a forward model can carry (a session's history, a
+        recording's artefact)."""
+        return {}
+
+    def reported(self, x: Array, ctx: Context) -> dict[str, float]:
+        """The parameters as the report gives them (the fitted ones, and any convention they
+        are read on)."""
+        return self.values(x)
+
+    def inferred(self, x: Array, ctx: Context, inp: Mapping[str, Array | None]) -> dict[str, Array]:
+        """Hidden states this model infers, for the report (e.g. ``{"T": ...}``)."""
+        return {}
+
+    # --- bookkeeping ----------------------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        return len(self.params)
+
+    @property
+    def pnames(self) -> list[str]:
+        return [p.name for p in self.params]
+
+    @property
+    def x0(self) -> Array:
+        return np.array([p.x0 for p in self.params], dtype=np.float64)
+
+    def values(self, x: Array) -> dict[str, float]:
+        return {p.name: float(v) for p, v in zip(self.params, x, strict=True)}
+
+    def __repr__(self) -> str:
+        return f"{self.word}[{self.label}]"
+
+
+def coefficient_params(
+    ctx: Context, names: list[str], scales: list[float], span: float = 3.0
+) -> list[Param]:
+    """Additive changes of .tir coefficients (0 = the file's value), bounded at +-``span``
+    times the larger of the typical scale and the file's magnitude."""
+    out = []
+    for k, s in zip(names, scales, strict=True):
+        if k not in ctx.base:
+            continue
+        big = span * max(s, abs(ctx.base[k]))
+        out.append(Param(k, 0.0, -big, big, max(s, 0.1 * abs(ctx.base[k]))))
+    return out

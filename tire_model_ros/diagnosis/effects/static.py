@@ -1,0 +1,127 @@
+"""Static terms: force offsets, and the Magic Formula's camber and combined-slip terms.
+
+An offset acts everywhere; camber and combined slip only in their region of the operating
+range (their ``support``): away from zero inclination, where both slips act (the weighting
+functions are 1 in pure slip, eqs. 4.E51, 4.E59).
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..prepare import Context
+from .base import Array, EffectModel, Index, Mask, Param, coefficient_params
+
+ACTIVE_KAPPA, ACTIVE_ALPHA = 0.01, np.radians(1.0)  # both above: combined slip acts
+CAMBER_MIN_RAD = np.radians(0.5)
+COMBINED_MIN_SHARE = 0.05  # of the samples with both slips, for combined slip to be tried
+
+
+class Offset(EffectModel):
+    """Constant offsets: a load-cell zero on Fx and Fy, and ply-steer as a slip-angle shift
+    (PHYSICS.md: Fy(alpha = 0) about 3 % of Fz, constant at zero slip, not scaling with
+    inclination)."""
+
+    word = "offset"
+    label = "force offsets and a ply-steer slip-angle shift"
+
+    def __init__(self, ctx: Context):
+        params = [Param(f"offset_{ch}_N", 0.0, -1e5, 1e5, ctx.sigma[ch]) for ch in ctx.channels]
+        if ctx.informative["y"]:
+            params.append(Param("ply_steer_rad", 0.0, -0.02, 0.02, 5e-4))
+        super().__init__(params)
+
+    @classmethod
+    def propose(cls, ctx: Context) -> list[EffectModel]:
+        return [cls(ctx)]
+
+    def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+        v = self.values(x)
+        if "ply_steer_rad" in v:
+            inp["alpha"] = inp["alpha"] + v["ply_steer_rad"]  # type: ignore[operator]
+
+    def output(self, x: Array, ctx: Context, out: dict[str, Array], rows: Index) -> None:
+        for k, v in self.values(x).items():
+            if k.startswith("offset_"):
+                ch = k.split("_")[1]
+                out[ch] = out[ch] + v
+
+    def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
+        v = self.values(x)
+        offsets = {k.split("_")[1]: (val, 0.0) for k, val in v.items() if k.startswith("offset_")}
+        return {"offsets": offsets, "alpha_shift_rad": v.get("ply_steer_rad", 0.0)}
+
+
+class _CoefficientRefit(EffectModel):
+    """Additive changes of named Magic Formula coefficients."""
+
+    def coef(self, x: Array, ctx: Context) -> dict[str, float]:
+        return {k: ctx.base[k] + float(v) for k, v in zip(self.pnames, x, strict=True)}
+
+
+class Camber(_CoefficientRefit):
+    """The MF camber coefficients (Fy: PVY3, PKY6, PHY3, PDY3; Fx: PDX3) refitted."""
+
+    word = "camber"
+    label = "Magic Formula camber coefficients"
+
+    def __init__(self, ctx: Context):
+        names, scales = [], []
+        if ctx.informative["y"]:
+            names += ["PVY3", "PKY6", "PHY3", "PDY3"]
+            scales += [0.1, 0.1, 0.01, 0.5]
+        if ctx.informative["x"]:
+            names += ["PDX3"]
+            scales += [1.0]
+        super().__init__(coefficient_params(ctx, names, scales, span=50.0))
+
+    @classmethod
+    def propose(cls, ctx: Context) -> list[EffectModel]:
+        g = ctx.wheel.x("gamma")
+        return [cls(ctx)] if float(np.ptp(g)) > CAMBER_MIN_RAD else []
+
+    def support(self, ctx: Context) -> Mask | None:
+        return np.abs(ctx.wheel.x("gamma")) > CAMBER_MIN_RAD
+
+
+class CombinedSlip(_CoefficientRefit):
+    """The combined-slip weighting functions (Gxa: rBx1, rBx2, rCx1; Gyk: rBy1, rBy2, rCy1)
+    and the slip-ratio-induced side force SVyk (rVy1, rVy4, rVy5, rVy6) refitted (Pacejka
+    2012 eqs. 4.E50-4.E67)."""
+
+    word = "combined_slip"
+    label = "combined-slip weighting and induced side force (rBx, rCx, rBy, rCy, rVy)"
+    # Coefficient: (typical scale, a usual value to start from where the file has 0 (with
+    # B = 0 a weighting is flat in B; with rVy4-6 = 0 the induced force has no gradient)).
+    COEFS: ClassVar[dict[str, tuple[float, float]]] = {
+        "RBX1": (1.0, 10.0), "RBX2": (1.0, 10.0), "RCX1": (0.1, 1.0), "RBY1": (1.0, 10.0),
+        "RBY2": (1.0, 5.0), "RCY1": (0.1, 1.0), "RVY1": (0.01, 0.0), "RVY4": (5.0, 20.0),
+        "RVY5": (0.2, 2.0), "RVY6": (1.0, 10.0),
+    }  # fmt: skip
+
+    def __init__(self, ctx: Context):
+        names = list(self.COEFS)  # proposed only where both slips are swept
+        params = coefficient_params(ctx, names, [self.COEFS[k][0] for k in names], 50.0)
+        out = []
+        for p in params:
+            usual = self.COEFS[p.name][1]
+            if ctx.base[p.name] == 0.0 and usual:
+                p = Param(p.name, usual, min(p.lo, -2 * usual), max(p.hi, 2 * usual), p.scale)
+            out.append(p)
+        super().__init__(out)
+
+    @classmethod
+    def propose(cls, ctx: Context) -> list[EffectModel]:
+        both = _both(ctx)
+        ok = both.mean() > COMBINED_MIN_SHARE and ctx.informative["x"] and ctx.informative["y"]
+        return [cls(ctx)] if ok else []
+
+    def support(self, ctx: Context) -> Mask | None:
+        return _both(ctx)
+
+
+def _both(ctx: Context) -> Mask:
+    w = ctx.wheel
+    return (np.abs(w.x("kappa")) >= ACTIVE_KAPPA) & (np.abs(w.x("alpha")) >= ACTIVE_ALPHA)

@@ -1,0 +1,202 @@
+"""Tyre temperature: a recorded channel refitted, or concealed heating inferred.
+
+The grip of rubber has a temperature window (PHYSICS.md): it rises towards an optimum and
+falls beyond it; stiffness falls with temperature. The .tir temperature extension carries both
+(INTERFACE.md): grip through TT*3, TT*4 (linear and quadratic in dT: a window is a pair of
+opposite sign), stiffness through TT*1 (falling; TT*2 is left as the file has it).
+Concealed, the tread temperature is the sum of two lumped nodes heated by the frictional
+power: the tread surface (seconds) on the carcass (minutes), each cooling back when the power
+stops, plus what is left of a pre-warmed start.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from tire_model_ros.model.states import Node
+
+from ..dynamics import first_order
+from ..prepare import THERMAL_RISE_REF_K, Context
+from .base import Array, EffectModel, Param
+
+TAU_FAST_S = (0.3, 60.0)  # tread surface (PHYSICS.md: seconds)
+TAU_SLOW_S = (30.0, 900.0)  # carcass (PHYSICS.md: 1-5 min; up to 15 for a big tyre)
+TT_SPAN = 2.0  # bound of a TT coefficient change (dT is about 1 over the convention's rise)
+# A temperature law keeps each factor (stiffness: 1 + TT*1 dT + TT*2 dT^2, grip: TT*3, TT*4)
+# within these over the temperatures it is applied to (PHYSICS.md: grip -10 % per +10 degC at
+# most, stiffness larger cold): beyond, a fitted quadratic is extrapolating, not physics.
+FACTOR_RANGE = (0.5, 1.5)
+PENALTY_WEIGHT = 300.0  # noise units per unit of factor outside its range
+RECORDED_T_MIN_STD_K = 0.5  # a recorded temperature that moves less tells nothing
+
+
+def _tt_names(ctx: Context) -> list[str]:
+    """Stiffness TT*1 and grip TT*3, TT*4 (TTX where slip ratio is swept, TTY where slip
+    angle is): stiffness falls with temperature (PHYSICS.md: monotonically, so linear and
+    TT*2 left as the file has it), grip has a window (a quadratic)."""
+    out = []
+    for axis, key in (("X", "x"), ("Y", "y")):
+        if ctx.informative[key]:
+            out += [f"TT{axis}{i}" for i in (1, 3, 4)]
+    return out
+
+
+def _tt_params(ctx: Context) -> list[Param]:
+    """The changes of the TT coefficients; a stiffness term may only make stiffness fall."""
+    return [
+        Param(k, 0.0, -TT_SPAN, 0.0 if k.endswith("1") else TT_SPAN, 0.1) for k in _tt_names(ctx)
+    ]
+
+
+class _TTModel(EffectModel):
+    """Shared: the TT coefficients are the last parameters, additive to the file's, and the
+    factors they make stay physical over the model's temperatures."""
+
+    word = "temperature"
+
+    def coef(self, x: Array, ctx: Context) -> dict[str, float]:
+        k0 = self.n - len(_tt_names(ctx))
+        return {
+            k: ctx.base.get(k, 0.0) + float(v)
+            for k, v in zip(self.pnames[k0:], x[k0:], strict=True)
+        }
+
+    def temperature(self, x: Array, ctx: Context) -> Array:
+        raise NotImplementedError
+
+    def penalty(self, x: Array, ctx: Context) -> Array:
+        T = self.temperature(x, ctx)
+        dT = (np.linspace(float(T.min()), float(T.max()), 9) - ctx.T_amb) / max(ctx.T_amb, 1e-6)
+        c = self.coef(x, ctx)
+        out = []
+        for axis in ("X", "Y"):
+            for lin, quad in ((1, 2), (3, 4)):
+                a, b = c.get(f"TT{axis}{lin}"), c.get(f"TT{axis}{quad}")
+                if a is None or b is None:
+                    continue
+                f = 1.0 + a * dT + b * dT**2
+                lo, hi = FACTOR_RANGE
+                out.append(np.maximum(lo - f, 0.0) + np.maximum(f - hi, 0.0))
+        return PENALTY_WEIGHT * np.concatenate(out) if out else np.zeros(0)
+
+
+class HiddenThermal(_TTModel):
+    """Concealed heating: T = T_amb + k (fast + share * slow) + T0 exp(-t / tau_slow).
+
+    ``mode`` "physical" is the model; "memoryless" (T follows the power at once), "scrambled"
+    (the same nodes driven by a block-shuffled power) and "trend" (T a plain ramp in time) are
+    its controls.
+    """
+
+    stable_in_time = False  # the first half sees the tyre warm up, the second hot
+
+    concealed = True
+
+    def __init__(self, ctx: Context, mode: str = "physical"):
+        self.mode = mode
+        self.label = {
+            "physical": "hidden tread and carcass nodes heated by frictional power",
+            "memoryless": "control: temperature follows frictional power at once",
+            "scrambled": "control: the nodes driven by a time-scrambled power",
+            "trend": "control: temperature a plain trend in time",
+        }[mode]
+        nodes = [
+            Param("tau_fast_s", 3.0, *TAU_FAST_S, 3.0),
+            Param("tau_slow_s", 150.0, *TAU_SLOW_S, 80.0),
+            Param("slow_share", 1.0, 0.0, 20.0, 0.5),
+            Param("T0_K", 0.0, 0.0, 60.0, 10.0),  # a pre-warmed start (0: at ambient)
+        ]
+        head = nodes if mode in ("physical", "scrambled") else []
+        starts = [
+            {"tau_fast_s": 1.0},
+            {"tau_fast_s": 10.0},
+            {"tau_slow_s": 60.0, "slow_share": 2.0},
+        ]
+        super().__init__([*head, *_tt_params(ctx)], starts if head else [])
+
+    @classmethod
+    def propose(cls, ctx: Context) -> list[EffectModel]:
+        if ctx.wheel.inputs["T"] is not None or not _tt_names(ctx):
+            return []
+        return [cls(ctx)]
+
+    def controls(self, ctx: Context) -> list[EffectModel]:
+        return [HiddenThermal(ctx, m) for m in ("memoryless", "scrambled", "trend")]
+
+    def temperature(self, x: Array, ctx: Context) -> Array:
+        """The hidden tread temperature [degC] on the convention's scale."""
+        w, k = ctx.wheel, ctx.k_thermal
+        if self.mode == "memoryless":
+            return ctx.T_amb + k * w.P
+        if self.mode == "trend":
+            return ctx.T_amb + THERMAL_RISE_REF_K * w.t / ctx.t_end
+        P = w.P[w.scramble] if self.mode == "scrambled" else w.P
+        tau_f, tau_s, share, T0 = (float(v) for v in x[:4])
+        fast = first_order(k * P, w.t, tau_f)
+        slow = first_order(k * share * P, w.t, tau_s, T0)
+        return ctx.T_amb + fast + slow
+
+    def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+        inp["T"] = self.temperature(x, ctx)
+
+    def inferred(self, x: Array, ctx: Context, inp: Mapping[str, Array | None]) -> dict[str, Array]:
+        return {"T": self.temperature(x, ctx)}
+
+    def reported(self, x: Array, ctx: Context) -> dict[str, float]:
+        """With the convention that sets the hidden scale: K per W of the nodes, ambient."""
+        return {**self.values(x), "gain_K_per_W": ctx.k_thermal, "T_amb_C": ctx.T_amb}
+
+    def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
+        tau_f, tau_s, share, T0 = (float(v) for v in x[:4])
+        return {
+            "T_amb_C": ctx.T_amb,
+            "thermal": Node(tau_f, ctx.k_thermal),
+            "thermal_slow": Node(tau_s, ctx.k_thermal * share),
+            "thermal_slow_start_K": T0,
+        }
+
+
+class RecordedThermal(_TTModel):
+    """A recorded tread temperature: the TT coefficients the file lacks (or has wrong) refitted
+    on it. ``mode`` "scrambled" (the channel block-shuffled) and "trend" (a ramp in time of
+    the same range) are its controls: the recorded temperature must explain more than a
+    drift that happens to go with it."""
+
+    stable_in_time = False  # each half sees its own range of temperature
+
+    concealed = False
+
+    def __init__(self, ctx: Context, mode: str = "recorded"):
+        self.mode = mode
+        self.label = {
+            "recorded": "recorded temperature, TTX/TTY refitted",
+            "scrambled": "control: the recorded temperature time-scrambled",
+            "trend": "control: a temperature ramp in time",
+        }[mode]
+        super().__init__(_tt_params(ctx))
+
+    @classmethod
+    def propose(cls, ctx: Context) -> list[EffectModel]:
+        T = ctx.wheel.inputs["T"]
+        if T is None or float(np.std(T)) < RECORDED_T_MIN_STD_K or not _tt_names(ctx):
+            return []
+        return [cls(ctx)]
+
+    def controls(self, ctx: Context) -> list[EffectModel]:
+        return [RecordedThermal(ctx, m) for m in ("scrambled", "trend")]
+
+    def temperature(self, x: Array, ctx: Context) -> Array:
+        T = ctx.wheel.inputs["T"]
+        assert T is not None
+        if self.mode == "scrambled":
+            return T[ctx.wheel.scramble]
+        if self.mode == "trend":
+            lo, hi = np.percentile(T, [5, 95])
+            return lo + (hi - lo) * ctx.wheel.t / ctx.t_end
+        return T
+
+    def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+        inp["T"] = self.temperature(x, ctx)

@@ -1,0 +1,129 @@
+"""Force lagging slip: relaxation in travelled distance, or a channel recorded late.
+
+PHYSICS.md tells them apart: relaxation scales with the slip rate over the speed and vanishes
+in slow sweeps; a delay is the same lag in time at every speed (and a negative one is not a
+delay).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..dynamics import delayed, lowpass, relaxed_slip
+from ..prepare import Context
+from .base import Array, EffectModel, Param
+
+KAPPA_PER_ALPHA_LENGTH = 0.5  # sigma_kappa / sigma_alpha where only sigma_alpha is fitted
+
+
+def _shapes(ctx: Context) -> dict[str, Array]:
+    """Per sample, from the file's model: the slip stiffness against its value at FNOMIN
+    (load shape) and the local slope of the force curve against the slip stiffness (slip
+    shape), for alpha and kappa. Computed once per recording."""
+    if "relaxation_shapes" in ctx.cache:
+        return ctx.cache["relaxation_shapes"]  # type: ignore[no-any-return]
+    w, m = ctx.wheel, ctx.model
+    Fz = np.maximum(w.x("Fz"), 1.0)
+    a, k, V = w.x("alpha"), w.x("kappa"), w.x("V")
+    ref = m.evaluate(np.array([ctx.base["FNOMIN"]]), 0.0, 0.0, 0.0)
+    o = m.evaluate(Fz, 0.0, 0.0, 0.0)
+    out: dict[str, Array] = {}
+    h = {"alpha": 1e-3, "kappa": 1e-3}
+    for key, K, K0, ch in (("alpha", o.Kya, ref.Kya, "Fy"), ("kappa", o.Kxk, ref.Kxk, "Fx")):
+        K, K0 = np.abs(np.asarray(K)), abs(float(np.asarray(K0)[0]))
+        out[f"load_{key}"] = np.clip(np.nan_to_num(K / max(K0, 1e-9), nan=1.0), 0.05, 3.0)
+        hi = {"alpha": a, "kappa": k} | {key: (a if key == "alpha" else k) + h[key]}
+        lo = {"alpha": a, "kappa": k} | {key: (a if key == "alpha" else k) - h[key]}
+        f_hi = getattr(m.evaluate(Fz, hi["kappa"], hi["alpha"], w.x("gamma"), Vx=V), ch)
+        f_lo = getattr(m.evaluate(Fz, lo["kappa"], lo["alpha"], w.x("gamma"), Vx=V), ch)
+        slope = np.abs(np.asarray(f_hi) - np.asarray(f_lo)) / (2 * h[key])
+        out[f"slip_{key}"] = np.clip(np.nan_to_num(slope / np.maximum(K, 1e-9)), 0.02, 1.5)
+    ctx.cache["relaxation_shapes"] = out
+    return out
+
+
+class Relaxation(EffectModel):
+    """First-order lag of slip in travelled distance with lengths that vary with load and
+    slip: sigma = sigma0 (K(Fz) / K(FNOMIN))^q (1 - c + c dF/dslip / K).
+
+    The load shape follows the MF 6.1 lengths (sigma = K / C, Pacejka 2012 §7.2.1, the carcass
+    stiffness C taken constant); the slip shape is the single-contact-point model's shortening
+    as the force curve flattens towards saturation.
+    """
+
+    word = "relaxation"
+    label = "lag in travelled distance, lengths varying with load and slip"
+
+    def __init__(self, ctx: Context):
+        params = []
+        if ctx.moving["y"]:
+            params.append(Param("sigma_alpha_m", 0.4, 0.0, 3.0, 0.2))
+        # sigma_kappa is fitted only where slip ratio is swept in every fold; where it merely
+        # moves, it follows sigma_alpha at the usual ratio (PHYSICS.md: 0.25 m vs ~0.5 m).
+        self.kappa_ratio = 0.0
+        if ctx.informative["x"] or (ctx.moving["x"] and not ctx.moving["y"]):
+            params.append(Param("sigma_kappa_m", 0.25, 0.0, 3.0, 0.2))
+        elif ctx.moving["x"]:
+            self.kappa_ratio = KAPPA_PER_ALPHA_LENGTH
+        params += [
+            Param("load_exponent", 1.0, 0.0, 2.0, 0.3),
+            Param("slip_share", 0.5, 0.0, 1.0, 0.2),
+        ]
+        super().__init__(params)
+
+    @classmethod
+    def propose(cls, ctx: Context) -> list[EffectModel]:
+        return [cls(ctx)] if ctx.moving["x"] or ctx.moving["y"] else []
+
+    def lengths(self, x: Array, ctx: Context) -> dict[str, Array]:
+        v = self.values(x)
+        sh = _shapes(ctx)
+        q, c = v["load_exponent"], v["slip_share"]
+        out = {}
+        for key, name in (("alpha", "sigma_alpha_m"), ("kappa", "sigma_kappa_m")):
+            s0 = v.get(name)
+            if s0 is None and key == "kappa" and self.kappa_ratio > 0:
+                s0 = self.kappa_ratio * v["sigma_alpha_m"]
+            if s0 is not None:
+                out[key] = s0 * sh[f"load_{key}"] ** q * (1.0 - c + c * sh[f"slip_{key}"])
+        return out
+
+    def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+        w = ctx.wheel
+        for key, sigma in self.lengths(x, ctx).items():
+            inp[key] = relaxed_slip(inp[key], w.t, w.x("V"), sigma)  # type: ignore[arg-type]
+
+    def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
+        return None  # a simulator's own transient tyre model does this
+
+
+class Delay(EffectModel):
+    """The forces recorded late against the slip: a pure delay and the DAQ's first-order
+    filter (both >= 0: a force that leads its slip is not a delay)."""
+
+    word = "time_delay"
+    label = "forces recorded late: pure delay and first-order filter"
+
+    def __init__(self, ctx: Context):
+        super().__init__(
+            [
+                Param("tau_delay_s", 0.01, 0.0, 0.3, 0.01),
+                Param("tau_filter_s", 0.0, 0.0, 0.1, 0.005),
+            ]
+        )
+
+    @classmethod
+    def propose(cls, ctx: Context) -> list[EffectModel]:
+        return [cls(ctx)] if ctx.moving["x"] or ctx.moving["y"] else []
+
+    def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+        t = ctx.wheel.t
+        for key in ("kappa", "alpha", "gamma", "Fz"):
+            v = inp[key]
+            assert v is not None
+            inp[key] = lowpass(delayed(v, t, float(x[0])), t, float(x[1]))
+
+    def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
+        return None  # an artefact of the recording, not of the tyre

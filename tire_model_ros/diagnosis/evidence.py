@@ -1,0 +1,147 @@
+"""When a model of missing physics is believed: the tests the engine applies to every one.
+
+1. *Significance*: on held-out whole sweeps it beats the current model by a margin relative
+   to the noise, on most sweeps (the sweeps, not the rows, are the units: their count is the
+   effective sample size).
+2. *Support*: a model whose physics acts only in one region of the operating range gains
+   there at least the least gain selection accepts, and most of its gain comes from there.
+3. *Stability*: a physics of the session does about the same to the forces when fitted on two
+   independent parts of it (the two selection folds; the early and the late half).
+4. *Controls*: it predicts held-out sweeps better than each simpler model of the same mismatch
+   it names (a memoryless twin, a time-scrambled driver, a plain trend).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import binom
+
+from .effects.base import Array, Mask
+from .fitting import Fit, Score, errors
+from .prepare import Context
+
+MIN_REL_RMSE_GAIN = 0.04  # >= 4 % lower held-out RMS (noise-normalised, all channels)
+MIN_GAIN_PER_SAMPLE = 0.08  # >= 8 % of the noise variance per held-out sample
+MIN_BLOCK_FRACTION = 0.6  # better on >= 60 % of the held-out sweeps that change materially
+MAX_SIGN_P = 0.05  # sign test over the changed held-out sweeps ...
+MIN_WEIGHTED_FRACTION = 0.8  # ... or >= 80 % of the total change is improvement
+MIN_T_ALT = 2.0  # ... with t >= 2
+MIN_CONTROL_MARGIN = 0.02  # >= 2 % lower held-out RMS than each control
+STABLE_SHARE = 0.7  # two fits of an effect differ by less than 70 % of what it does
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A candidate's held-out score against the current model's."""
+
+    rel_gain: float  # 1 - rms_new / rms_current
+    gain_per_sample: float  # in noise variances
+    block_fraction: float  # share of the materially changed sweeps that improved
+    t_stat: float  # per-sweep gains: mean / standard error
+    p_sign: float  # one-sided sign test over the changed sweeps
+    weighted_fraction: float  # share of the total per-sweep change that is improvement
+
+    @property
+    def significant(self) -> bool:
+        return (
+            self.rel_gain >= MIN_REL_RMSE_GAIN
+            and self.gain_per_sample >= MIN_GAIN_PER_SAMPLE
+            and self.block_fraction >= MIN_BLOCK_FRACTION
+            and self.t_stat > 0.0
+            # Most sweeps better (sign test), or the improvement dominating by size and
+            # consistent (t), where a crude model of a large effect also moves many sweeps a
+            # little the wrong way.
+            and (
+                self.p_sign <= MAX_SIGN_P
+                or (self.weighted_fraction >= MIN_WEIGHTED_FRACTION and self.t_stat >= MIN_T_ALT)
+            )
+        )
+
+    def text(self) -> str:
+        return (
+            f"gain {self.rel_gain:+.3f} gps {self.gain_per_sample:+.3f} "
+            f"sweeps {self.block_fraction:.2f} t {self.t_stat:.1f} p {self.p_sign:.3f} "
+            f"w {self.weighted_fraction:.2f}"
+        )
+
+
+def compare(cur: Score, new: Score) -> Comparison:
+    """Held-out comparison of ``new`` with ``cur`` (the same rows)."""
+    rel = 1.0 - new.rms / max(cur.rms, 1e-12)
+    gps = (cur.total - new.total) / max(cur.n, 1)
+    a = np.array(list(cur.per_block.values()))
+    d = np.array([v - new.per_block.get(k, v) for k, v in cur.per_block.items()])
+    # A sweep counts when its squared error changed materially: by more than one noise
+    # variance and by more than 5 % of what it was (noise-level wiggles are not votes).
+    changed = d[(np.abs(d) >= 1.0) & (np.abs(d) >= 0.05 * a)]
+    frac = float(np.mean(changed > 0)) if len(changed) else 0.0
+    t = 0.0
+    if len(d) >= 3 and np.std(d, ddof=1) > 0:
+        t = float(np.mean(d) / (np.std(d, ddof=1) / np.sqrt(len(d))))
+    k, n = int(np.sum(changed > 0)), len(changed)
+    p = float(binom.sf(k - 1, n, 0.5)) if n else 1.0
+    wfrac = float(np.sum(np.clip(changed, 0, None)) / np.sum(np.abs(changed))) if n else 0.0
+    return Comparison(rel, gps, frac, t, p, wfrac)
+
+
+MIN_SUPPORT_SHARE = 0.7  # of the held-out gain (noise units) made inside the support
+
+
+def region_sums(
+    ctx: Context,
+    cur: Sequence[Fit],
+    new: Sequence[Fit],
+    tests: Sequence[Array],
+    inside: Mask,
+) -> Array:
+    """Normalised held-out squared errors of ``cur`` and ``new`` inside and outside a region,
+    and the held-out samples inside: [in cur, in new, out cur - out new, n in]."""
+    acc = np.zeros(4)
+    for f0, f1, rows in zip(cur, new, tests, strict=True):
+        e0, e1 = errors(f0.models, f0.x, ctx, rows), errors(f1.models, f1.x, ctx, rows)
+        z0 = sum((e0[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels)
+        z1 = sum((e1[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels)
+        m = inside[rows]
+        acc += (float(z0[m].sum()), float(z1[m].sum()), float(z0[~m].sum() - z1[~m].sum()), m.sum())
+    return acc
+
+
+def region_gains(acc: Array) -> tuple[float, float, int]:
+    """From :func:`region_sums` (summed over wheels): the relative RMS gain inside the region,
+    the share of the whole gain (noise units) made there, and the held-out samples inside."""
+    cur_in, new_in, gain_out, n_in = acc
+    rel_in = 1.0 - math.sqrt(new_in / cur_in) if cur_in > 0 else 0.0
+    whole = (cur_in - new_in) + gain_out
+    share = (cur_in - new_in) / whole if whole > 0 else 0.0
+    return rel_in, share, int(n_in)
+
+
+def supported(rel_in: float, share_in: float, n_in: int) -> bool:
+    """The physics shows where it acts: enough gain there, and most of the gain."""
+    return n_in > 0 and rel_in >= MIN_REL_RMSE_GAIN and share_in >= MIN_SUPPORT_SHARE
+
+
+def rms(x: Array) -> float:
+    return float(np.sqrt(np.mean(x**2))) if len(x) else 0.0
+
+
+def agree_doing(size: float, diff: float) -> bool:
+    """Two fits of one effect do the same to the forces: they differ by less than
+    STABLE_SHARE of what they do (both in noise units, RMS over the training samples). A
+    spurious effect fits whatever each part offers and does different things; a real one
+    modelled imperfectly still does mostly the same."""
+    return diff <= STABLE_SHARE * size
+
+
+def n_eff_ratio(r: Array) -> float:
+    """n_eff / n of a residual from its lag-1 autocorrelation: (1 - rho) / (1 + rho)."""
+    r = r[np.isfinite(r)]
+    if len(r) < 3 or float(r @ r) == 0.0:
+        return 1.0
+    r = r - r.mean()
+    rho = min(max(float(r[1:] @ r[:-1]) / float(r @ r), 0.0), 0.999)
+    return (1.0 - rho) / (1.0 + rho)

@@ -1,0 +1,208 @@
+"""Fitting a composed model on some rows and scoring it on others.
+
+Residuals are normalised by each channel's noise level, so a score of 1 per sample is
+"explained to the noise". Fits are bounded least squares (trust-region reflective) over every
+model's parameters, from the current model's values plus the newest model's alternative
+starts (its non-convex directions, e.g. a time constant).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .effects.base import Array, EffectModel, Index, Mask
+from .predict import predict
+from .prepare import Context
+
+MAX_NFEV = 40
+BAD_RESIDUAL = 1e3  # a non-finite model output counts as this many noise sigmas
+
+
+@dataclass
+class Fit:
+    models: list[EffectModel]
+    x: Array
+    cost: float  # half the sum of squared normalised residuals
+    m: int  # number of residuals
+    jac: Array | None = None  # of the free parameters
+    free: Mask | None = None  # the parameters that were fitted (None: all)
+
+
+@dataclass
+class Score:
+    """Normalised squared residuals on a set of rows, per channel [N^2] and per block."""
+
+    total: float  # sum over channels and rows, noise units
+    n: int
+    sse: dict[str, float]  # sum of squared residual per channel [N^2 or (N m)^2]
+    count: dict[str, int]
+    per_block: dict[tuple[str, int], float] = field(default_factory=dict)  # (wheel, block)
+
+    @property
+    def rms(self) -> float:
+        return float(np.sqrt(self.total / max(self.n, 1)))
+
+    def rmse(self, ch: str) -> float:
+        return float(np.sqrt(self.sse[ch] / max(self.count[ch], 1)))
+
+    def mse_forces(self) -> float:
+        """Mean square error of Fx and Fy together [N^2] (INTERFACE.md's ``explained``)."""
+        ss = sum(self.sse.get(ch, 0.0) for ch in ("Fx", "Fy"))
+        nn = sum(self.count.get(ch, 0) for ch in ("Fx", "Fy"))
+        return ss / max(nn, 1)
+
+
+def errors(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> dict[str, Array]:
+    """Model minus measured per fitted channel at ``rows`` [N or N m] (non-finite: huge)."""
+    out = predict(models, x, ctx, rows)
+    w = ctx.wheel
+    e = {}
+    for ch in ctx.channels:
+        d = out[ch] - w.meas[ch][rows]
+        e[ch] = np.where(np.isfinite(d), d, BAD_RESIDUAL * ctx.sigma[ch])
+    return e
+
+
+def residuals(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> Array:
+    """Stacked normalised residuals over the fitted channels, and the models' penalties."""
+    e = errors(models, x, ctx, rows)
+    parts = [e[ch] / ctx.sigma[ch] for ch in ctx.channels]
+    i = 0
+    for m in models:
+        parts.append(m.penalty(np.asarray(x[i : i + m.n], dtype=np.float64), ctx))
+        i += m.n
+    return np.concatenate(parts)
+
+
+def bounds(models: Sequence[EffectModel]) -> tuple[Array, Array]:
+    lo = np.array([p.lo for m in models for p in m.params], dtype=np.float64)
+    hi = np.array([p.hi for m in models for p in m.params], dtype=np.float64)
+    return lo, hi
+
+
+def fit(
+    models: Sequence[EffectModel],
+    ctx: Context,
+    rows: Index,
+    x0: Array | None = None,
+    max_nfev: int = MAX_NFEV,
+    free: Mask | None = None,
+) -> Fit:
+    """Bounded least squares of the models' parameters on ``rows``, then each model settled
+    on them (``EffectModel.settle``).
+
+    ``free``: which parameters are fitted (None: all that are ``fitted``); the others keep
+    their ``x0`` values (``Fit.x`` is always the whole vector). Alternative starts are those of
+    the last model.
+    """
+    models = list(models)
+    if x0 is None:
+        x0 = np.concatenate([m.x0 for m in models]) if models else np.zeros(0)
+    lo, hi = bounds(models)
+    x0 = np.clip(np.asarray(x0, float), lo, hi)
+    free = np.ones(len(x0), dtype=bool) if free is None else np.asarray(free, dtype=bool)
+    free = free & np.array([p.fitted for m in models for p in m.params], dtype=bool)
+    if not free.any():
+        r = residuals(models, x0, ctx, rows)
+        return Fit(models, x0, 0.5 * float(r @ r), len(r), free=free)
+    scale = np.array([p.scale for m in models for p in m.params], dtype=np.float64)[free]
+
+    def full(xt: Array) -> Array:
+        x = x0.copy()
+        x[free] = xt
+        return x
+
+    def fun(xt: Array) -> Array:
+        return residuals(models, full(xt), ctx, rows)
+
+    def solve(x_start: Array, nfev: int):  # type: ignore[no-untyped-def]
+        return least_squares(
+            fun,
+            x_start,
+            bounds=(lo[free], hi[free]),
+            x_scale=scale,
+            method="trf",
+            ftol=1e-5,
+            xtol=1e-5,
+            gtol=1e-8,
+            max_nfev=nfev,
+            diff_step=1e-4,
+        )
+
+    starts = [x0[free]]
+    names = [p.name for m in models for p in m.params]
+    for st in models[-1].starts if models else []:
+        xs = x0.copy()
+        for name, v in st.items():
+            if name in names and free[names.index(name)]:
+                xs[names.index(name)] = v
+        starts.append(np.clip(xs, lo, hi)[free])
+    xt = starts[0]
+    if len(starts) > 1:
+        trial = [solve(xs, max(6, max_nfev // 6)) for xs in starts]
+        xt = min(trial, key=lambda r: r.cost).x
+    res = solve(xt, max_nfev)
+    return Fit(
+        models, settle(models, full(res.x), ctx, rows), float(res.cost), len(res.fun), res.jac, free
+    )
+
+
+def settle(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> Array:
+    """``x`` after every model's ``settle`` on the rows it was fitted on."""
+    out, i = [], 0
+    for m in models:
+        out.append(m.settle(np.asarray(x[i : i + m.n], dtype=np.float64), ctx, rows))
+        i += m.n
+    return np.concatenate(out) if out else np.asarray(x, dtype=np.float64)
+
+
+def score(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> Score:
+    """Normalised score on ``rows``, with per-channel and per-block sums."""
+    w = ctx.wheel
+    e = errors(models, x, ctx, rows)
+    z = np.zeros(len(rows))
+    sse, count = {}, {}
+    for ch in ctx.channels:
+        sse[ch] = float(e[ch] @ e[ch])
+        count[ch] = len(rows)
+        z += (e[ch] / ctx.sigma[ch]) ** 2
+    sums = np.bincount(w.block_id[rows], weights=z, minlength=len(w.blocks))
+    per_block = {(w.prefix, int(b)): float(sums[b]) for b in np.unique(w.block_id[rows])}
+    return Score(float(z.sum()), len(rows) * len(ctx.channels), sse, count, per_block)
+
+
+def merge(scores: Sequence[Score]) -> Score:
+    """One score of several disjoint held-out sets."""
+    out = Score(0.0, 0, {}, {}, {})
+    for sc in scores:
+        out.total += sc.total
+        out.n += sc.n
+        for ch, v in sc.sse.items():
+            out.sse[ch] = out.sse.get(ch, 0.0) + v
+            out.count[ch] = out.count.get(ch, 0) + sc.count[ch]
+        out.per_block.update(sc.per_block)
+    return out
+
+
+def uncertainty(f: Fit, n_eff_ratio: float) -> Array:
+    """1-sigma uncertainties of the free parameters (NaN for the others) from the Jacobian,
+    inflated for autocorrelation: cov = s^2 (J^T J)^-1 m / n_eff, s^2 = 2 cost / (m - n)."""
+    sd = np.full(len(f.x), np.nan)
+    if f.jac is None:
+        return sd
+    J = np.asarray(f.jac)
+    k = J.shape[1]
+    s2 = 2.0 * f.cost / max(f.m - k, 1)
+    JTJ = J.T @ J
+    with np.errstate(all="ignore"):
+        cov = np.linalg.pinv(JTJ) * s2 / max(n_eff_ratio, 1e-3)
+        part = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        # A parameter the data do not move (a zero column) has no finite uncertainty.
+        dead = np.diag(JTJ) <= 1e-12 * max(float(np.max(np.diag(JTJ))), 1e-300)
+    part[dead] = np.nan
+    sd[np.ones(len(f.x), dtype=bool) if f.free is None else f.free] = part
+    return sd

@@ -1,0 +1,175 @@
+"""Whole sweeps as the units of validation, and their folds.
+
+100 Hz samples are strongly autocorrelated (PHYSICS.md): a random choice of validation rows
+measures interpolation. The diagnosis therefore validates on whole sweeps (*blocks*): runs of
+segments between pauses, a long run cut into pieces of about ``BLOCK_S``. Folds 0 and 1 are the
+two halves of the selection's cross-validation; fold 2 is held out from everything until the
+final report.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from tire_model_ros.fit.sweeps import Segment
+
+Index = npt.NDArray[np.int64]
+Array = npt.NDArray[np.float64]
+
+BLOCK_S = 15.0  # a continuous run (no pause) is cut into blocks of about this length [s]
+# Rare sweeps each selection fold keeps before one goes to the final held-out fold: the MF
+# pressure terms are quadratic (two per side), a fit needs two levels off nominal.
+MIN_RARE_PER_FOLD = 2
+RARE_PRESSURE = 0.05  # a sweep 5 % off the session's usual pressure is at a rare condition
+RARE_CAMBER_RAD = np.radians(0.5)
+
+
+def blocks(segments: Sequence[Segment], t: Array, block_s: float = BLOCK_S) -> list[list[int]]:
+    """Whole sweeps as lists of segment numbers: runs between pauses, cut near ``block_s``.
+
+    The way out and the way back of one sweep stay together, so a held-out block tests the
+    model's within-sweep dynamics too.
+    """
+    runs: list[list[int]] = []
+    cur: list[int] = []
+    for i, seg in enumerate(segments):
+        cur.append(i)
+        if seg.kind == "pause":
+            runs.append(cur)
+            cur = []
+    if cur:
+        runs.append(cur)
+    out: list[list[int]] = []
+    for run in runs:
+        piece: list[int] = []
+        for i in run:
+            piece.append(i)
+            start = t[segments[piece[0]].index[0]]
+            if t[segments[i].index[-1]] - start > block_s and i != run[-1]:
+                out.append(piece)
+                piece = []
+        if piece:
+            out.append(piece)
+    return out
+
+
+def block_index(segments: Sequence[Segment], t: Array, block_s: float = BLOCK_S) -> list[Index]:
+    """The sample indices of each block (see :func:`blocks`), in time order."""
+    return [np.concatenate([segments[i].index for i in b]) for b in blocks(segments, t, block_s)]
+
+
+def assign_folds(
+    segments: Sequence[Segment],
+    t: Array,
+    rng: np.random.Generator,
+    inputs: Mapping[str, Array | None],
+    block_s: float = BLOCK_S,
+) -> npt.NDArray[np.int8]:
+    """Fold 0/1 (selection) or 2 (final held-out) per sample, whole blocks, balanced in time.
+
+    Blocks at a rare condition (pressure or camber away from the session's usual value) are
+    few and are stratified per kind of sweep (see :func:`rare_folds`). The other blocks are
+    taken three at a time in time order, each triple getting a random permutation of the
+    folds, so that every fold spans the whole session.
+    """
+    fold = np.zeros(len(t), dtype=np.int8)
+    bl = blocks(segments, t, block_s)
+    rare = [rare_kind(segments, b, inputs) for b in bl]
+    rare_fold = rare_folds(rare, rng)
+    common = []
+    for j, b in enumerate(bl):
+        if rare[j] is None:
+            common.append(b)
+            continue
+        for i in b:
+            fold[segments[i].index] = rare_fold[j]
+    for j in range(0, len(common), 3):
+        perm = rng.permutation(3)
+        for k, b in enumerate(common[j : j + 3]):
+            for i in b:
+                fold[segments[i].index] = int(perm[k])
+    return fold
+
+
+def rare_folds(
+    rare: Sequence[tuple[str, tuple[int, ...]] | None], rng: np.random.Generator
+) -> dict[int, int]:
+    """Fold of each rare block (index into ``rare``: its (kind, condition) or None).
+
+    A rare sweep is a run of blocks of one kind at one condition. Rare sweeps alternate, per
+    kind, between the two selection folds, so that every selection fit sees one and predicts
+    another. A stratum (a kind and the conditions it varies) with enough rare sweeps that each
+    selection fold keeps MIN_RARE_PER_FOLD of them also gives one to the final held-out fold:
+    the interior condition farthest from the usual one (the held-out test interpolates, as the
+    fit does, and sees the effect where it is strongest).
+    """
+    runs: list[tuple[str, tuple[int, ...], list[int]]] = []
+    last: dict[str, int] = {}  # kind -> its latest run
+    for j, r in enumerate(rare):
+        if r is None:
+            continue
+        kind, cond = r
+        if kind in last and runs[last[kind]][1] == cond:
+            runs[last[kind]][2].append(j)
+            continue
+        last[kind] = len(runs)
+        runs.append((kind, cond, [j]))
+    strata: dict[tuple[str, tuple[int, ...]], list[int]] = {}
+    for k, (kind, cond, _) in enumerate(runs):
+        strata.setdefault((kind, tuple(i for i, v in enumerate(cond) if v)), []).append(k)
+    held: set[int] = set()
+    taken: set[tuple[int, ...]] = set()
+    for key in sorted(strata):
+        ks = strata[key]
+        levels = sorted({runs[k][1] for k in ks})[1:-1]
+        free = [c for c in levels if c not in taken] or levels
+        if len(ks) >= 2 * MIN_RARE_PER_FOLD + 1 and free:
+            far = max(free, key=lambda cond: sum(map(abs, cond)))  # farthest from usual
+            held.add(next(k for k in ks if runs[k][1] == far))
+            taken.add(far)
+    out: dict[int, int] = {}
+    turn: dict[str, int] = {}
+    for k, (kind, _, js) in enumerate(runs):
+        f = turn.setdefault(kind, int(rng.integers(2)))
+        if k in held:
+            out.update(dict.fromkeys(js, 2))
+            continue
+        out.update(dict.fromkeys(js, f))
+        turn[kind] = 1 - f
+    return out
+
+
+def rare_kind(
+    segments: Sequence[Segment], block: Sequence[int], inputs: Mapping[str, Array | None]
+) -> tuple[str, tuple[int, ...]] | None:
+    """('x'/'y', condition) if the block runs at a rare condition, else None.
+
+    'x'/'y' is the slip the sweep excites; the condition is its pressure and camber, rounded
+    to the tolerances that make them rare.
+    """
+    idx = np.concatenate([segments[i].index for i in block])
+    rare = False
+    cond = []
+    p = inputs.get("p")
+    if p is not None:
+        ref, here = float(np.median(p)), float(np.median(p[idx]))
+        step = RARE_PRESSURE * max(abs(ref), 1e-9)
+        rare |= abs(here - ref) > step
+        cond.append(round((here - ref) / step))
+    g = inputs["gamma"]
+    assert g is not None
+    dg = float(np.median(g[idx])) - float(np.median(g))
+    rare |= abs(dg) > RARE_CAMBER_RAD
+    cond.append(round(dg / RARE_CAMBER_RAD))
+    if not rare:
+        return None
+    kappa, alpha = inputs["kappa"], inputs["alpha"]
+    assert kappa is not None and alpha is not None
+    k = float(np.max(np.abs(kappa[idx])))
+    a = float(np.max(np.abs(alpha[idx])))
+    if k < 0.01 and a < np.radians(1.0):
+        return None  # a pause or hold at the condition: nothing to fit
+    return ("x" if k / 0.1 > a / np.radians(5.0) else "y"), tuple(cond)

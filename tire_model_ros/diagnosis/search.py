@@ -1,0 +1,360 @@
+"""The selection engine: forward selection of effect models on held-out whole sweeps.
+
+Start from the baseline (the file's model, scaling factors refitted), on every wheel of the
+recording. At each step every model of the library not yet in (one per word) is added in
+turn, on each wheel it applies to with that wheel's own parameters, and cross-validated on
+the two selection folds; those that beat the current model significantly, the evidence of
+all wheels pooled, are ranked by held-out score (the simplest first among near-ties), and the
+first one the evidence tests believe joins (:mod:`.evidence`: support, stability, controls).
+Then every chosen effect must still earn its place against the others (backward step), and
+each is credited with what it explains: the share of the baseline's held-out mean square
+error of Fx and Fy that the model loses without it. No rule here names an effect.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import evidence as ev
+from .effects.base import Array, EffectModel, Index, Mask
+from .fitting import Fit, Score, fit, merge, score
+from .predict import predict
+from .prepare import Context
+
+MAX_EFFECTS = 5
+OCCAM_MARGIN = 0.02  # held-out RMS within 2 % of the best: the fewer parameters win
+
+
+@dataclass
+class Trial:
+    """A composed model of one wheel cross-validated on the two selection folds."""
+
+    ctx: Context
+    models: list[EffectModel]
+    fits: list[Fit]  # one per split (trained on fold a, on fold b)
+    score: Score  # held-out score, both splits merged
+    split_scores: list[Score]
+
+
+Key = tuple[str, str]  # an effect model across wheels: (class name, label)
+
+
+@dataclass
+class Joint:
+    """The wheels' trials of one composed model (the wheels an effect does not apply to keep
+    the model it was added to)."""
+
+    wheels: dict[str, Trial]
+    keys: list[Key] = field(default_factory=list)  # the effects in, in order of joining
+    vs: ev.Comparison | None = None  # against the model it was built from
+    notes: list[str] = field(default_factory=list)  # what the evidence tests found
+
+    @property
+    def score(self) -> Score:
+        return merge([t.score for t in self.wheels.values()])
+
+    def split(self, i: int) -> Score:
+        return merge([t.split_scores[i] for t in self.wheels.values()])
+
+    def effect(self, key: Key) -> dict[str, EffectModel]:
+        """Per wheel, the model of ``key`` in it."""
+        return {p: m for p, t in self.wheels.items() for m in t.models if _key(m) == key}
+
+
+@dataclass
+class Selection:
+    """The engine's result: the chosen effects, strongest first, and how it got there."""
+
+    baseline: Joint
+    final: Joint
+    chosen: list[Key]  # strongest first
+    explained: dict[Key, float]  # share of the baseline's held-out MSE of Fx and Fy (pooled)
+    explained_per_wheel: dict[Key, dict[str, float]]
+    accepted: dict[Key, Joint]  # the step that admitted each
+    log: list[str]
+
+
+def _key(m: EffectModel) -> Key:
+    return (type(m).__name__, m.label)
+
+
+def splits(ctx: Context) -> list[tuple[Index, Index]]:
+    return [(ctx.rows["a"], ctx.rows["b"]), (ctx.rows["b"], ctx.rows["a"])]
+
+
+def cross_validate(
+    models: Sequence[EffectModel],
+    ctx: Context,
+    x0s: Sequence[Array | None],
+    free: Mask | None = None,
+    screen: Trial | None = None,
+) -> Trial:
+    """Fit on each split's training fold, score on its test fold.
+
+    With ``screen`` (the current model), a model that does not reach half the least gain on
+    the first split is not fitted on the second (it cannot pass; the fits are the cost).
+    """
+    fits, scores = [], []
+    for i, ((train, test), x0) in enumerate(zip(splits(ctx), x0s, strict=True)):
+        f = fit(models, ctx, train, x0, free=free)
+        fits.append(f)
+        scores.append(score(models, f.x, ctx, test))
+        if screen is not None and i == 0:
+            gain = 1.0 - scores[0].rms / max(screen.split_scores[0].rms, 1e-12)
+            if gain < 0.5 * ev.MIN_REL_RMSE_GAIN:
+                fits.append(f)
+                scores.append(screen.split_scores[1])  # "no better than the current model"
+                break
+    return Trial(ctx, list(models), fits, merge(scores), scores)
+
+
+def add(cur: Trial, e: EffectModel, everything: bool = False) -> Trial:
+    """``cur`` plus ``e``: the new parameters and the baseline's fitted, the earlier effects'
+    held (``everything``: all fitted)."""
+    models = [*cur.models, e]
+    free = None
+    if not everything:
+        n_base, n_prev = cur.models[0].n, sum(m.n for m in cur.models[1:])
+        free = np.concatenate([np.ones(n_base, bool), np.zeros(n_prev, bool), np.ones(e.n, bool)])
+    x0s = [np.concatenate([f.x, e.x0]) for f in cur.fits]
+    return cross_validate(models, cur.ctx, x0s, free, screen=None if everything else cur)
+
+
+def without(cur: Trial, key: Key) -> Trial:
+    """``cur`` with the model of ``key`` taken out and the rest refitted."""
+    keep = [i for i, m in enumerate(cur.models) if _key(m) != key]
+    if len(keep) == len(cur.models):
+        return cur
+    offsets = np.cumsum([0] + [m.n for m in cur.models])
+    cols = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in keep])
+    return cross_validate([cur.models[i] for i in keep], cur.ctx, [f.x[cols] for f in cur.fits])
+
+
+def joint_add(
+    cur: Joint, key: Key, models: dict[str, EffectModel], everything: bool = False
+) -> Joint:
+    """``cur`` plus the wheels' models of one effect."""
+    wheels = {p: add(t, models[p], everything) if p in models else t for p, t in cur.wheels.items()}
+    out = Joint(wheels, [*cur.keys, key])
+    out.vs = ev.compare(cur.score, out.score)
+    return out
+
+
+def search(
+    ctxs: Sequence[Context],
+    baselines: Sequence[EffectModel],
+    pools: Sequence[Iterable[EffectModel]],
+) -> Selection:
+    """Forward selection over the library (``pools``: each wheel's candidate models), then
+    the backward step; see the module text."""
+    log: list[str] = []
+    base = Joint(
+        {
+            c.wheel.prefix: cross_validate([b], c, [None, None])
+            for c, b in zip(ctxs, baselines, strict=True)
+        }
+    )
+    library: dict[Key, dict[str, EffectModel]] = {}
+    for c, pool in zip(ctxs, pools, strict=True):
+        for m in pool:
+            library.setdefault(_key(m), {})[c.wheel.prefix] = m
+    cur = base
+    accepted: dict[Key, Joint] = {}
+    for step in range(MAX_EFFECTS):
+        words = {library[k][next(iter(library[k]))].word for k in cur.keys}
+        trials = [
+            joint_add(cur, k, ms)
+            for k, ms in library.items()
+            if next(iter(ms.values())).word not in words
+        ]
+        for t in trials:
+            assert t.vs is not None
+            log.append(f"step {step}: {_name(library, t.keys[-1])} held-out {t.score.rms:.3f} "
+                       f"(current {cur.score.rms:.3f}) {t.vs.text()}")  # fmt: skip
+        best = next((t for t in _ranked(trials, library) if _believed(t, cur, library, log)), None)
+        if best is None:
+            break
+        key = best.keys[-1]
+        full = joint_add(cur, key, library[key], everything=True)  # every parameter refitted
+        full.notes = best.notes
+        cur = full if full.score.rms <= best.score.rms else best
+        accepted[key] = cur
+        log.append(f"accepted {_name(library, key)}")
+    cur, explained, per_wheel = _backward(cur, base, log, library)
+    chosen = sorted(cur.keys, key=lambda k: -explained[k])
+    return Selection(base, cur, chosen, explained, per_wheel, accepted, log)
+
+
+def _name(library: dict[Key, dict[str, EffectModel]], key: Key) -> str:
+    return repr(next(iter(library[key].values())))
+
+
+def _n_params(t: Joint, library: dict[Key, dict[str, EffectModel]]) -> int:
+    return next(iter(library[t.keys[-1]].values())).n
+
+
+def _ranked(trials: Sequence[Joint], library: dict[Key, dict[str, EffectModel]]) -> list[Joint]:
+    """The significant trials, best held-out first, the fewest parameters first among those
+    within OCCAM_MARGIN of the best."""
+    ok = sorted(
+        (t for t in trials if t.vs is not None and t.vs.significant), key=lambda t: t.score.rms
+    )
+    if not ok:
+        return []
+    near = [t for t in ok if t.score.rms <= ok[0].score.rms * (1.0 + OCCAM_MARGIN)]
+    near.sort(key=lambda t: (_n_params(t, library), t.score.rms))
+    return near + [t for t in ok if t not in near]
+
+
+def _believed(
+    t: Joint, cur: Joint, library: dict[Key, dict[str, EffectModel]], log: list[str]
+) -> bool:
+    """The evidence tests of :mod:`.evidence` beyond significance, cheapest first."""
+    for test in (_support, _stability, _controls):
+        ok, note = test(t, cur)
+        if note:
+            t.notes.append(note)
+        if not ok:
+            log.append(f"rejected {_name(library, t.keys[-1])}: {note}")
+            return False
+    return True
+
+
+def _new(t: Joint, cur: Joint) -> list[tuple[Trial, Trial, EffectModel]]:
+    """(current trial, new trial, the added model) of every wheel the effect was added on."""
+    key = t.keys[-1]
+    out = []
+    for p, new in t.wheels.items():
+        if new is not cur.wheels[p] and _key(new.models[-1]) == key:
+            out.append((cur.wheels[p], new, new.models[-1]))
+    return out
+
+
+def _support(t: Joint, cur: Joint) -> tuple[bool, str]:
+    acc = np.zeros(4)
+    any_region = False
+    for c, n, e in _new(t, cur):
+        mask = e.support(n.ctx)
+        if mask is None:
+            continue
+        any_region = True
+        acc += ev.region_sums(n.ctx, c.fits, n.fits, [test for _, test in splits(n.ctx)], mask)
+    if not any_region:
+        return True, ""
+    rel, share, n_in = ev.region_gains(acc)
+    ok = ev.supported(rel, share, n_in)
+    return ok, (f"held-out gain {rel:+.1%} where it acts ({n_in} samples), {share:.0%} of its "
+                "whole gain made there")  # fmt: skip
+
+
+def _doing(f: Fit, ctx: Context, rows: Index) -> Array:
+    """What the last model of ``f`` does to the forces at ``rows``: the model with it minus the
+    model without it, stacked over the channels in noise units."""
+    e = f.models[-1]
+    xe = f.x[: len(f.x) - e.n]
+    a, b = predict(f.models, f.x, ctx, rows), predict(f.models[:-1], xe, ctx, rows)
+    return np.concatenate([(a[ch] - b[ch]) / ctx.sigma[ch] for ch in ctx.channels])
+
+
+def _stability(t: Joint, cur: Joint) -> tuple[bool, str]:
+    """The effect does about the same to the forces when fitted on the two folds, and on the
+    early and on the late half of the session (its parameters may trade off; what it does may
+    not), every wheel's samples pooled."""
+    new = _new(t, cur)
+    if not new or not new[0][2].stable:
+        return True, ""
+    parts: dict[str, list[tuple[Array, Array]]] = {"the two folds": []}
+    for _, n, e in new:
+        rows = n.ctx.rows["ab"]
+        parts["the two folds"].append(
+            (_doing(n.fits[0], n.ctx, rows), _doing(n.fits[1], n.ctx, rows))
+        )
+        if e.stable_in_time:
+            t_mid = float(np.median(n.ctx.wheel.t[rows]))
+            halves = [rows[n.ctx.wheel.t[rows] < t_mid], rows[n.ctx.wheel.t[rows] >= t_mid]]
+            x0 = np.mean([f.x for f in n.fits], axis=0)
+            fh = [fit(n.models, n.ctx, h, x0, free=n.fits[0].free) for h in halves]
+            parts.setdefault("the early and the late half", []).append(
+                (_doing(fh[0], n.ctx, rows), _doing(fh[1], n.ctx, rows))
+            )
+    notes = []
+    for what, pairs in parts.items():
+        da = np.concatenate([a for a, _ in pairs])
+        db = np.concatenate([b for _, b in pairs])
+        size, diff = ev.rms(0.5 * (da + db)), ev.rms(da - db)
+        notes.append(f"{diff:.2f} apart on {what} for {size:.2f} done")
+        if not ev.agree_doing(size, diff):
+            return (
+                False,
+                f"what it does differs between {what} ({diff:.2f} vs {size:.2f} done, noise units)",
+            )
+    return (
+        True,
+        "constant over the session: fitted apart it does about the same to the forces ("
+        + ", ".join(notes)
+        + ")",
+    )
+
+
+def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
+    """It predicts held-out sweeps better than each of its controls, fitted the same way."""
+    new = _new(t, cur)
+    if not new:
+        return True, ""
+    per_wheel = {n.ctx.wheel.prefix: n.models[-1].controls(n.ctx) for _, n, _ in new}
+    out = []
+    for i, c in enumerate(next(iter(per_wheel.values()))):
+        ctrl = Joint(
+            {
+                p: add(cur.wheels[p], cs[i]) if p in per_wheel and (cs := per_wheel[p]) else tr
+                for p, tr in cur.wheels.items()
+            }
+        )
+        rms = ctrl.score.rms
+        out.append(f"{c.label} {rms:.3f}")
+        if t.score.rms > rms * (1.0 - ev.MIN_CONTROL_MARGIN):
+            return False, f"not better than {c.label} ({t.score.rms:.3f} vs {rms:.3f})"
+    if not out:
+        return True, ""
+    return (
+        True,
+        f"beats its controls: {', '.join(out)} vs {t.score.rms:.3f} (held-out RMS, noise units)",
+    )
+
+
+def _backward(
+    cur: Joint, base: Joint, log: list[str], library: dict[Key, dict[str, EffectModel]]
+) -> tuple[Joint, dict[Key, float], dict[Key, dict[str, float]]]:
+    """Drop any effect the others make redundant; credit each what the model loses without it
+    (pooled over the wheels, and per wheel)."""
+    while True:
+        explained: dict[Key, float] = {}
+        per_wheel: dict[Key, dict[str, float]] = {}
+        drop = None
+        for key in cur.keys:
+            wo = Joint(
+                {p: without(t, key) for p, t in cur.wheels.items()},
+                [k for k in cur.keys if k != key],
+            )
+            vs = ev.compare(wo.score, cur.score)
+            explained[key] = _share(wo.score, cur.score, base.score)
+            per_wheel[key] = {
+                p: _share(wo.wheels[p].score, cur.wheels[p].score, base.wheels[p].score)
+                for p in cur.wheels
+            }
+            if not vs.significant and drop is None:
+                drop = (key, wo, vs)
+        if drop is None:
+            return cur, explained, per_wheel
+        key, wo, vs = drop
+        log.append(f"dropped {_name(library, key)}: the others explain it ({vs.text()})")
+        wo.vs, wo.notes = cur.vs, cur.notes
+        cur = wo
+
+
+def _share(without_it: Score, full: Score, base: Score) -> float:
+    """The share of the baseline's held-out MSE of Fx and Fy that the model loses without it."""
+    return (without_it.mse_forces() - full.mse_forces()) / max(base.mse_forces(), 1e-12)
