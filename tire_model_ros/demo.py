@@ -191,7 +191,9 @@ def step_diagnose(bag: Path, tir: Path, out: Path):
     from tire_model_ros.cli.diagnose_cmd import effects_path, improved_tir
 
     improved = out / "improved.tir"
-    write_tir(improved_tir(next(iter(diag.wheels.values())), TireModel.from_file(tir).tir), improved)
+    write_tir(
+        improved_tir(next(iter(diag.wheels.values())), TireModel.from_file(tir).tir), improved
+    )
     effects = diag.node_effects(improved.name)
     effects_path(improved).write_text(effects.to_json())
     (out / "diagnosis.json").write_text(json.dumps(diag.to_json(), indent=2) + "\n")
