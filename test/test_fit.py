@@ -438,7 +438,8 @@ def test_cli_end_to_end(base, tmp_path):
         cwd=tmp_path,
     )
     assert r3.returncode == 1 and "pressure does not vary" in r3.stderr
-    assert not (tmp_path / "x.tir").exists()
+    assert "nothing written" in r3.stderr
+    assert not (tmp_path / "x.tir").exists() and not (tmp_path / "x_fit_report").exists()
     r4 = _cli(
         str(tmp_path / "missing.mcap"),
         "--tir",

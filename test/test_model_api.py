@@ -290,6 +290,48 @@ def test_eval_cli_refuses_overwrite_and_bad_rows(tmp_path) -> None:
     assert res.returncode == 1 and "gamma" in res.stderr and "Vx" in res.stderr
 
 
+def test_eval_cli_writes_finite_rows_or_nothing(tmp_path) -> None:
+    head = "Fz,kappa,alpha,gamma,Vx,p\n"
+    ok = "4000,0.05,0.02,0,16,260000\n"
+    src = tmp_path / "in.csv"
+    src.write_text(head + ok + "4000,nan,0,0,16,260000\n")
+    res = _run("--tir", str(TIR61), str(src), "-o", str(tmp_path / "o1.csv"))
+    assert res.returncode == 1
+    assert "in.csv: line 3: column 'kappa': 'nan' is not finite" in res.stderr
+    # the plain equations at 1e300 N overflow: refused, naming the CSV line, nothing written
+    src.write_text(head + ok + ok + "1e300,0.1,0.1,0,16,260000\n")
+    res = _run("--tir", str(TIR61), str(src), "-o", str(tmp_path / "o2.csv"), "--no-limits")
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    assert "1 of 3 rows give non-finite outputs" in res.stderr and "line(s) 4;" in res.stderr
+    assert not (tmp_path / "o2.csv").exists()
+    # with the limits the same rows are saturated, counted, and written
+    src.write_text(head + ok + "20000,0.05,1.2,0,16,260000\n" + "1e300,0.1,-1.3,0,0.5,260000\n")
+    res = _run("--tir", str(TIR61), str(src), "-o", str(tmp_path / "o3.csv"))
+    assert res.returncode == 0, res.stderr
+    assert "saturated to the file's ranges: Fz on 2 rows, alpha on 2 rows" in res.stdout
+    assert "Vx (low-speed model) on 1 row" in res.stdout
+    out = _read_csv(tmp_path / "o3.csv")
+    assert all(np.isfinite(out[name]).all() for name in ("Fx", "Fy", "Mx", "My", "Mz"))
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + (head + ok).encode())
+    assert _run("--tir", str(TIR61), str(bom), "-o", str(tmp_path / "o4.csv")).returncode == 0
+    assert "every row written is finite, or nothing is written" in _run("--help").stdout
+
+
+def test_eval_cli_lenient_fills_and_lists(tmp_path) -> None:
+    lines = TIR61.read_text().splitlines(keepends=True)
+    damaged = tmp_path / "nopdy2.tir"
+    damaged.write_text("".join(ln for ln in lines if not ln.startswith("PDY2")))
+    src = tmp_path / "in.csv"
+    src.write_text("Fz,kappa,alpha,gamma,Vx,p\n4000,0.05,0.02,0,16,260000\n")
+    res = _run("--tir", str(damaged), str(src), "-o", str(tmp_path / "o.csv"))
+    assert res.returncode == 1 and "nopdy2.tir: line" in res.stderr and "PDY2" in res.stderr
+    assert "--lenient" in res.stderr and not (tmp_path / "o.csv").exists()
+    res = _run("--tir", str(damaged), str(src), "-o", str(tmp_path / "o.csv"), "--lenient")
+    assert res.returncode == 0, res.stderr
+    assert "note: " in res.stderr and "filled with defaults PDY2=-0.15" in res.stderr
+
+
 def test_cache_guard_clears_a_stale_user_cache_dir(tmp_path) -> None:
     """With NUMBA_CACHE_DIR set, kernels cached from other sources are dropped at import (numba
     keys a cache on its own file only, not on the inlined equations of the other modules)."""

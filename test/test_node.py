@@ -667,8 +667,7 @@ def test_effects_file_runs_hidden_states_live_and_bad_file_rejected(client, tmp_
     fx = WheelEffects(
         T_amb_C=25.0,
         thermal=Node(4.0, 5e-3),
-        bulk=Node(60.0, 2e-5),
-        bulk_mu_loss=0.3,
+        thermal_slow=Node(60.0, 2e-5),  # the carcass node (effects file version 2)
         offsets={"Fy": (20.0, 100.0)},
     )
     good = tmp_path / "improved.effects.json"

@@ -33,6 +33,7 @@ REF_DIR = ROOT.parent / "shared" / "reference" / "tir"
 DEFAULT_TIR = ROOT / "config" / "default.tir"
 REF_FILES = sorted(REF_DIR.glob("*.tir"))
 MF61 = REF_DIR / "MagicFormula61_Parameters.tir"
+UNSTABLE = REF_DIR / "Model_Unstable.tir"
 CITYBUS = REF_DIR / "citybus_tire_CityBus_Pac02Tire.tir"
 
 # file -> (fittyp family, FITTYP in file, FNOMIN, PDY1, NOMPRES, format); values from the files
@@ -40,7 +41,6 @@ SPOT = {
     "MagicFormula61_Parameters.tir": (61, 61, 6752.0, 1.0085, 260000.0, "MF"),
     "MagicFormula62_Parameters.tir": (62, 62, 6752.0, 1.0085, 260000.0, "MF"),
     "MagicFormula52_Parameters.tir": (6, 6, 9416.6, 0.8271, 220000.0, "MF"),  # NOMPRES default
-    "Model_Unstable.tir": (61, 61, 5260.0, None, 260000.0, "MF"),
     "FSAE_Defaults.tir": (61, 61, 1000.0, None, 85000.0, "MF"),
     "PacejkaBook_Defaults.tir": (61, 61, 4000.0, None, 220000.0, "MF"),
     "VW_microbus_json_mf_185_80R14.tir": (6, None, 3800.0, 0.94002, 220000.0, "PAC2002"),
@@ -50,8 +50,24 @@ SPOT = {
 }
 
 
+LOADABLE = [p for p in REF_FILES if p.name in SPOT]
+
+
 def test_reference_directory_has_the_files():
-    assert {p.name for p in REF_FILES} == set(SPOT), "reference .tir set changed"
+    assert {p.name for p in REF_FILES} == {*SPOT, UNSTABLE.name}, "reference .tir set changed"
+
+
+def test_model_unstable_is_refused_for_its_values():
+    # MFeval's "deliberately ill-behaved" set: zero vertical stiffness (no rolling radius: Re
+    # and Rl are NaN everywhere) and Cx = PCX1 = 0 (with PDX1 = 0: no longitudinal force).
+    with pytest.raises(TirError) as info:
+        read_tir(UNSTABLE)
+    err = info.value
+    assert (err.line, err.key) == (52, "VERTICAL_STIFFNESS")
+    assert "Model_Unstable.tir: line 52: VERTICAL_STIFFNESS: " in str(err)
+    assert "must be > 0" in str(err) and "PCX1 (line 155)" in str(err)
+    with pytest.raises(TirError, match="VERTICAL_STIFFNESS"):
+        read_tir(UNSTABLE, lenient=True)  # invalid values are not filled: refused in any mode
 
 
 # --------------------------------------------------------------------------------------------
@@ -59,7 +75,7 @@ def test_reference_directory_has_the_files():
 # --------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("path", REF_FILES, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", LOADABLE, ids=lambda p: p.name)
 def test_reference_file_loads_with_spot_values(path):
     tir = read_tir(path)
     fittyp, in_file, fnomin, pdy1, nompres, fmt = SPOT[path.name]
@@ -169,7 +185,7 @@ def test_default_tir_has_the_temperature_extension():
 # --------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("path", [*REF_FILES, DEFAULT_TIR], ids=lambda p: p.name)
+@pytest.mark.parametrize("path", [*LOADABLE, DEFAULT_TIR], ids=lambda p: p.name)
 def test_write_read_round_trip_is_exact(path, tmp_path):
     tir = read_tir(path)
     out = tmp_path / path.name
@@ -189,13 +205,14 @@ def test_write_read_round_trip_is_exact(path, tmp_path):
 
 
 def test_round_trip_of_awkward_floats(tmp_path):
+    # the extreme magnitudes go to coefficients no force depends on: the model stays a tyre
     tir = read_tir(MF61).with_params(
-        {"PDY1": 0.1 + 0.2, "PKY1": -1e-300, "QSY4": 1 / 3, "FNOMIN": 6752.000000000001,
-         "PEX1": -0.0, "PCX1": 5e-324, "QSX4": 1.7976931348623157e308}
+        {"PDY1": 0.1 + 0.2, "PKY1": -1e-300, "IXX": 1 / 3, "FNOMIN": 6752.000000000001,
+         "PEX1": -0.0, "DAMP_VLOW": 5e-324, "GRAVITY": -1.7976931348623157e308}
     )  # fmt: skip
     write_tir(tir, tmp_path / "f.tir")
     back = read_tir(tmp_path / "f.tir").params
-    for key in ("PDY1", "PKY1", "QSY4", "FNOMIN", "PEX1", "PCX1", "QSX4"):
+    for key in ("PDY1", "PKY1", "IXX", "FNOMIN", "PEX1", "DAMP_VLOW", "GRAVITY"):
         assert back[key] == tir.params[key] and math.copysign(1, back[key]) == math.copysign(
             1, tir.params[key]
         )
@@ -247,7 +264,7 @@ def test_crlf_case_comments_and_blank_lines_do_not_change_the_result(tmp_path):
             line = line.lower() + "   $ section comment"
         out += [line, "", "$ comment line", "   ! another"]
     path = tmp_path / "variant.tir"
-    path.write_bytes("\r\n".join(out).encode())
+    path.write_bytes("\r\n".join([*out, ""]).encode())
     tir = read_tir(path)
     assert tir.params == ref.params and tir.strings == ref.strings and tir.fittyp == 61
 
@@ -344,8 +361,56 @@ ERROR_CASES = [
 ]
 
 
-@pytest.mark.parametrize(("name", "edit", "line", "key", "reason"), ERROR_CASES,
-                         ids=[c[0] for c in ERROR_CASES])  # fmt: skip
+def _drop(*prefixes):
+    def edit(lines):
+        return [x for x in lines if not x.startswith(prefixes)]
+
+    return edit
+
+
+def _append(*extra):
+    return lambda lines: [*lines, *extra]
+
+
+T = {p: _line_of(REF_LINES, p) for p in (
+    "[LATERAL_COEFFICIENTS]", "[OPERATING_CONDITIONS]", "PRESMAX", "FZMAX", "KPUMAX", "QSX1",
+    "NOMPRES", "PCX1", "UNLOADED_RADIUS", "[TURNSLIP_COEFFICIENTS]")}  # fmt: skip
+N_ROLLING = sum(ln.startswith(("[ROLLING", "QSY")) for ln in REF_LINES)
+
+# What cannot be trusted: refused by default, each naming the file, the line and the key.
+TRUST_CASES = [
+    ("typo_section", _replace("[LATERAL_COEFFICIENTS]", "[LATERAL_COEFICIENTS]"),
+     T["[LATERAL_COEFFICIENTS]"] + 1, "PCY1", "unknown section [LATERAL_COEFICIENTS]"),
+    ("near_miss", _append("[ALIGNNG_COEFFICIENTS]"), len(REF_LINES) + 1,
+     "[ALIGNNG_COEFFICIENTS]", "a mistyped [ALIGNING_COEFFICIENTS]"),
+    ("missing_key", _drop("PDY2"), T["[LATERAL_COEFFICIENTS]"], "PDY2", "needed by MF 6.1"),
+    ("missing_section", _drop("[ROLLING", "QSY"), len(REF_LINES) - N_ROLLING, "QSY1",
+     "a section the file lacks"),
+    ("partial_turnslip", _drop("QDRP1"), T["[TURNSLIP_COEFFICIENTS]"], "QDRP1", "all or nothing"),
+    ("temperature_without_nomtemp", _append("[TEMPERATURE_COEFFICIENTS]", "TTX1 = 0.1"),
+     T["[OPERATING_CONDITIONS]"], "NOMTEMP", "all or nothing"),
+    ("fz_range", _replace("FZMIN", "FZMIN = 20000"), T["FZMAX"], "FZMAX",
+     "contradictory range: FZMIN = 20000.0"),
+    ("pres_range", _replace("PRESMIN", "PRESMIN = 500000"), T["PRESMAX"], "PRESMAX",
+     "contradictory range: PRESMIN"),
+    ("kpu_range", _replace("KPUMIN", "KPUMIN = 1"), T["KPUMAX"], "KPUMAX",
+     "contradictory range: KPUMIN"),
+    ("fnomin_zero", _replace("FNOMIN", "FNOMIN = 0"), L["FNOMIN"], "FNOMIN", "must be > 0"),
+    ("r0_negative", _replace("UNLOADED_RADIUS", "UNLOADED_RADIUS = -0.3"),
+     T["UNLOADED_RADIUS"], "UNLOADED_RADIUS", "must be > 0"),
+    ("pcx1_zero", _replace("PCX1", "PCX1 = 0"), T["PCX1"], "PCX1", "must be > 0"),
+    ("nompres_outside", _replace("NOMPRES", "NOMPRES = 600000"), T["NOMPRES"], "NOMPRES",
+     "outside the file's range PRESMIN..PRESMAX"),
+    ("fnomin_outside", _replace("FNOMIN", "FNOMIN = 20000"), L["FNOMIN"], "FNOMIN",
+     "outside the file's range FZMIN..FZMAX"),
+    ("fnomin_tiny", _replace("FNOMIN", "FNOMIN = 1e-12"), L["FNOMIN"], "FNOMIN",
+     "not a tyre on the file's operating range"),
+    ("qsx1_huge", _replace("QSX1", "QSX1 = 1e308"), T["QSX1"], "QSX1", "Mx is inf"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("name", "edit", "line", "key", "reason"), ERROR_CASES + TRUST_CASES,
+                         ids=[c[0] for c in ERROR_CASES + TRUST_CASES])  # fmt: skip
 def test_malformed_file_error_names_file_line_key(tmp_path, name, edit, line, key, reason):
     path = _mangled(tmp_path, f"bad_{name}.tir", edit)
     with pytest.raises(TirError) as info:
@@ -359,6 +424,80 @@ def test_malformed_file_error_names_file_line_key(tmp_path, name, edit, line, ke
     assert reason in message, message
     assert info.value.line == line
     assert isinstance(info.value, ValueError)
+
+
+def test_file_cut_short_is_refused_and_lenient_fills_and_lists(tmp_path):
+    data = MF61.read_bytes()
+    at = data.index(b"PDY1 ") + len(b"PDY1                     =    1.0")  # inside 1.0085
+    path = tmp_path / "cut.tir"
+    path.write_bytes(data[:at])
+    with pytest.raises(TirError) as info:
+        read_tir(path)
+    assert (info.value.line, info.value.key) == (L["PDY1"], "PDY1")
+    assert "cut.tir: line" in str(info.value) and "cut short" in str(info.value)
+    path.write_bytes(data[: at - 15])  # inside the key name: unreadable, explained by the cut
+    with pytest.raises(TirError, match=rf"cut\.tir: line {L['PDY1']}: .*cut short"):
+        read_tir(path)
+
+    path.write_bytes(data[:at])
+    tir = read_tir(path, lenient=True)
+    assert tir.params["PDY1"] == 1.0  # read as it is, and said so
+    assert "PDY2" in tir.filled and "QDZ1" in tir.filled and "PDY1" not in tir.filled
+    assert tir.params["PDY2"] == PARAMETERS["PDY2"].default
+    notes = "\n".join(tir.notes)
+    assert f"line {L['PDY1']}: PDY1: " in notes and "read as it is" in notes
+    for key in tir.filled:  # every filled key is listed with the value it took
+        assert f"{key}=" in notes, key
+    assert all(str(path) in note for note in tir.notes)
+    # every needed coefficient of the sections cut away, and nothing else
+    assert "PEY5" in tir.filled and "TTX1" not in tir.filled and "QSX1" not in tir.filled
+
+
+def test_lenient_keeps_unknown_sections_and_fills_what_they_hid(tmp_path):
+    path = _mangled(
+        tmp_path, "typo.tir", _replace("[LATERAL_COEFFICIENTS]", "[LATERAL_COEFICIENTS]")
+    )
+    tir = read_tir(path, lenient=True)
+    assert tir.filled >= {"PCY1", "PDY1", "PKY1"} and tir.params["PDY1"] == 1.1  # defaults
+    assert [r.name for r in tir.raw_sections] == ["LATERAL_COEFICIENTS"]
+    assert any("kept verbatim, not read" in n for n in tir.notes)
+    assert read_tir(MF61, lenient=True).notes == ()  # a whole file: nothing to say
+
+
+def test_required_keys_and_bad_values_are_refused_even_when_lenient(tmp_path):
+    for name, edit, word in [("nofnomin", _drop("FNOMIN"), "FNOMIN"),
+                             ("zero", _replace("PCY1", "PCY1 = 0"), "PCY1"),
+                             ("fz", _replace("FZMIN", "FZMIN = 20000"), "FZMAX"),
+                             ("qsx1", _replace("QSX1", "QSX1 = 1e308"), "QSX1")]:  # fmt: skip
+        with pytest.raises(TirError, match=rf"{name}\.tir: line \d+: {word}: "):
+            read_tir(_mangled(tmp_path, f"{name}.tir", edit), lenient=True)
+
+
+def test_vendor_and_table_sections_are_kept(tmp_path):
+    path = _mangled(tmp_path, "acme.tir", _append("[ACME]", "COLOUR = 'black'", "BATCH = 7"))
+    tir = read_tir(path)
+    assert tir.raw_sections[-1].name == "ACME" and tir.notes == ()
+
+
+def test_every_version_is_met_by_a_reference_file():
+    from tire_model_ros.model.versions import VERSIONS, version_of
+
+    seen = {version_of(read_tir(p).fittyp_in_file).name for p in LOADABLE}
+    assert seen == {v.name for v in VERSIONS}
+
+
+def test_check_model_names_the_coefficient():
+    from tire_model_ros.model import TireModel
+    from tire_model_ros.model.check import check_model
+
+    model = TireModel(read_tir(MF61))
+    assert check_model(model) is None
+    fault = check_model(model.with_params({"QSX1": 1e308}))
+    assert fault is not None and fault.output == "Mx" and fault.causes == ("QSX1",)
+    assert "Mx is inf" in str(fault) and fault.n_points > 0
+    fault = check_model(model.with_params({"PDY1": 50.0}))  # mu_y of 50: finite, not a tyre
+    assert fault is not None and fault.output == "Fy" and "PDY1" in fault.causes
+    assert "beyond the bound" in fault.reason
 
 
 def test_nompres_needed_when_a_pressure_term_is_set_in_mf52(tmp_path):

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from tire_model_ros.atomic import write_atomic
+from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
 
 HELP = "locate, name and model a model/recording mismatch"
 
@@ -47,6 +48,7 @@ def add_arguments(parser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the sweep folds (default 0)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    add_lenient_argument(parser)
 
 
 def _check_free(path: str | None, force: bool) -> None:
@@ -111,7 +113,7 @@ def node_params(diag, tirs: dict[str, Path], effects: Path) -> str:
 
 def run(args) -> int:
     from tire_model_ros.diagnosis import diagnose
-    from tire_model_ros.model import TireModel, write_tir
+    from tire_model_ros.model import write_tir
     from tire_model_ros.recording import open_recording
 
     out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
@@ -129,7 +131,7 @@ def run(args) -> int:
         and not args.force
     ):
         raise FileExistsError(f"{args.report}: exists and is not empty (use --force)")
-    model = TireModel.from_file(args.tir)
+    model = load_model(args.tir, args.lenient)
     wheels = open_recording(args.bag, wheels=args.wheel)
     t0 = time.perf_counter()
     diag = diagnose(list(wheels.values()), model, seed=args.seed)

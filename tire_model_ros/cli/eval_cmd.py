@@ -12,19 +12,40 @@ import argparse
 import csv
 import io
 import math
+import sys
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from tire_model_ros.atomic import write_atomic
+from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
+
+Array = npt.NDArray[np.float64]
 
 HELP = "evaluate the model on a CSV of inputs"
 REQUIRED = ("Fz", "kappa", "alpha", "gamma", "Vx", "p")
 OPTIONAL = ("phit", "T")
 OUTPUTS = ("Fx", "Fy", "Mx", "My", "Mz")
+SHOWN_ROWS = 5  # CSV lines named in a refusal
+RULE = """\
+every row written is finite, or nothing is written:
+  - an input cell that is not a finite number (text, nan, inf) stops eval (exit 1), naming its
+    line and column;
+  - with the limits (the default) the inputs are saturated to the file's ranges
+    (FZMIN..FZMAX, KPUMIN..KPUMAX, ALPMIN..ALPMAX, CAMMIN..CAMMAX, PRESMIN..PRESMAX; a
+    negative Fz reads as 0) and below VXLOW the low-speed model applies: eval prints how many
+    rows each input was saturated on;
+  - a row whose outputs are not finite (the plain equations of --no-limits far outside the
+    file's ranges, or a coefficient set that breaks there) stops eval (exit 1): nothing is
+    written and the message counts those rows and names the first CSV lines.
+The .tir file is refused (exit 1) when it cannot be trusted: see --lenient."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.epilog = RULE
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.add_argument("input", metavar="IN.csv", help="CSV with columns " + ",".join(REQUIRED))
     parser.add_argument("--tir", required=True, metavar="FILE", help="tyre property file (.tir)")
     parser.add_argument("-o", "--output", required=True, metavar="OUT.csv", help="result CSV")
@@ -44,12 +65,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="alpha* = tan(alpha), gamma* = sin(gamma) in the equations (MFeval useMode x2x)",
     )
     parser.add_argument("--force", action="store_true", help="overwrite OUT.csv if it exists")
+    add_lenient_argument(parser)
 
 
-def read_inputs(path: Path) -> dict[str, np.ndarray]:
-    """Columns of IN.csv as float arrays; ValueError naming file, row and column when bad."""
+def _cell(path: Path, line_no: int, name: str, text: str) -> float:
+    """One input cell as a finite float; ValueError naming file, line and column."""
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:  # a BOM is no column name
+        value = float(text)
+    except ValueError:
+        raise ValueError(
+            f"{path}: line {line_no}: column {name!r}: {text!r} is not a number"
+        ) from None
+    if not math.isfinite(value):
+        raise ValueError(f"{path}: line {line_no}: column {name!r}: {text!r} is not finite")
+    return value
+
+
+def read_inputs(path: Path) -> tuple[dict[str, Array], npt.NDArray[np.int64]]:
+    """Columns of IN.csv as float arrays and the CSV line of each row.
+
+    Raises
+    ------
+    ValueError
+        naming the file, the line and the column: a missing column, a short row, a cell that
+        is not a finite number, a file that is not text.
+    """
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:  # a byte-order mark is no column
             rows = list(csv.reader(fh))
     except UnicodeDecodeError as exc:
         raise ValueError(f"{path}: not a text CSV file ({exc.reason})") from None
@@ -61,7 +103,8 @@ def read_inputs(path: Path) -> dict[str, np.ndarray]:
         raise ValueError(f"{path}: line 1: missing column(s) {', '.join(missing)}")
     wanted = [name for name in REQUIRED + OPTIONAL if name in header]
     index = {name: header.index(name) for name in wanted}
-    data = {name: [] for name in wanted}
+    data: dict[str, list[float]] = {name: [] for name in wanted}
+    lines: list[int] = []
     for line_no, row in enumerate(rows[1:], start=2):
         if not row or all(not cell.strip() for cell in row):
             continue  # blank line
@@ -69,29 +112,56 @@ def read_inputs(path: Path) -> dict[str, np.ndarray]:
             col = index[name]
             if col >= len(row):
                 raise ValueError(f"{path}: line {line_no}: column {name!r} missing (short row)")
-            try:
-                data[name].append(float(row[col]))
-            except ValueError:
-                raise ValueError(
-                    f"{path}: line {line_no}: column {name!r}: {row[col]!r} is not a number"
-                ) from None
-    return {name: np.asarray(values, dtype=np.float64) for name, values in data.items()}
+            data[name].append(_cell(path, line_no, name, row[col]))
+        lines.append(line_no)
+    columns = {name: np.asarray(values, dtype=np.float64) for name, values in data.items()}
+    return columns, np.asarray(lines, dtype=np.int64)
 
 
-def write_csv_atomic(path: Path, columns: dict[str, np.ndarray], overwrite: bool) -> None:
+def non_finite_rows(outputs: Mapping[str, Array]) -> npt.NDArray[np.bool_]:
+    """Rows where any output is NaN or infinite."""
+    bad = np.zeros(len(next(iter(outputs.values()))), dtype=bool)
+    for values in outputs.values():
+        bad |= ~np.isfinite(values)
+    return bad
+
+
+def _refusal(
+    path: Path,
+    bad: npt.NDArray[np.bool_],
+    lines: npt.NDArray[np.int64],
+    outputs: Mapping[str, Array],
+) -> str:
+    """One line: how many rows are not finite, in which outputs, the first CSV lines."""
+    where = ", ".join(str(n) for n in lines[bad][:SHOWN_ROWS])
+    more = ", ..." if bad.sum() > SHOWN_ROWS else ""
+    which = ", ".join(name for name, v in outputs.items() if not np.isfinite(v).all())
+    return (
+        f"{path}: {int(bad.sum())} of {bad.size} rows give non-finite outputs ({which}) at "
+        f"line(s) {where}{more}; nothing written"
+    )
+
+
+def _saturation_note(model_params: Mapping[str, float], inputs: Mapping[str, Array]) -> str:
+    from tire_model_ros.model.check import saturated_rows
+
+    counts = saturated_rows(model_params, inputs)
+    touched = [f"{name} on {n} row{'s' if n > 1 else ''}" for name, n in counts.items() if n]
+    return "saturated to the file's ranges: " + ", ".join(touched) if touched else "none saturated"
+
+
+def write_csv_atomic(path: Path, columns: Mapping[str, Array], overwrite: bool) -> None:
     """Write the columns to ``path`` atomically; floats with repr() precision."""
     names = list(columns)
     buf = io.StringIO(newline="")
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(names)
     for row in zip(*(columns[n] for n in names), strict=True):
-        writer.writerow([repr(float(v)) if math.isfinite(v) else str(v) for v in row])
+        writer.writerow([repr(float(v)) for v in row])
     write_atomic(path, buf.getvalue(), overwrite=overwrite)
 
 
 def run(args: argparse.Namespace) -> int:
-    from tire_model_ros.model import TireModel
-
     source = Path(args.input)
     target = Path(args.output)
     if target.exists() and not args.force:
@@ -100,8 +170,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{target}: the output would replace the input file")
     if not target.parent.is_dir():
         raise FileNotFoundError(f"{target.parent}: output folder does not exist")
-    model = TireModel.from_file(args.tir)
-    inputs = read_inputs(source)
+    model = load_model(args.tir, args.lenient)
+    inputs, lines = read_inputs(source)
     out = model.evaluate(
         inputs["Fz"],
         inputs["kappa"],
@@ -116,8 +186,12 @@ def run(args: argparse.Namespace) -> int:
         turn_slip=args.turn_slip,
         alpha_star=args.alpha_star,
     )
-    columns = dict(inputs)
-    columns.update({name: getattr(out, name) for name in OUTPUTS})
-    write_csv_atomic(target, columns, overwrite=args.force)
-    print(f"wrote {target}: {inputs['Fz'].size} rows")
+    outputs: dict[str, Array] = {name: getattr(out, name) for name in OUTPUTS}
+    bad = non_finite_rows(outputs)
+    if bad.any():
+        raise ValueError(_refusal(source, bad, lines, outputs))
+    write_csv_atomic(target, {**inputs, **outputs}, overwrite=args.force)
+    note = "limits off" if args.no_limits else _saturation_note(model.params, inputs)
+    print(f"wrote {target}: {inputs['Fz'].size} rows ({note})")
+    sys.stdout.flush()
     return 0

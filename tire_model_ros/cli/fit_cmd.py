@@ -4,6 +4,14 @@ Reads every wheel of every BAG, fits the coefficients of START stage by stage (F
 combined slip, pressure terms, temperature terms; see ``tire_model_ros.fit.stages``), writes the
 fitted model to OUT.tir (with its temperature section) and a report (markdown, JSON, PNG plots)
 into the report folder. Existing files are never replaced without ``--force``.
+
+OUT.tir and its report are written whole or not at all (``atomic.OutputSet``): staged in a
+hidden folder ``.OUT.tir.partial`` beside OUT.tir, then renamed into place, the .tir first. A
+run interrupted while staging leaves only that folder, which the next run removes; one
+interrupted while renaming is finished by the next run. A fit with no stage fitted, or whose
+model is not a tyre on its operating range (``model.check``), writes nothing; but when the
+stages were tried and none beat the noise, the start model already explains the data and is
+written as the result, with a note in the file and the report.
 """
 
 from __future__ import annotations
@@ -12,6 +20,8 @@ import argparse
 import dataclasses
 import sys
 from pathlib import Path
+
+from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
 
 HELP = "refit the model from recordings"
 
@@ -63,6 +73,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="fit only this wheel prefix (repeatable; default all wheels)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    add_lenient_argument(parser)
 
 
 def default_report_dir(output: Path) -> Path:
@@ -71,15 +82,19 @@ def default_report_dir(output: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tire_model_ros.atomic import OutputSet
     from tire_model_ros.fit.report import report_paths
 
     out = Path(args.output)
     report_dir = Path(args.report) if args.report else default_report_dir(out)
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"{out.parent}: output folder does not exist")
+    outputs = OutputSet([out, report_dir], overwrite=args.force)
+    for note in outputs.recover():
+        print(f"note: {note}", file=sys.stderr)
     # Refuse before any work: never replace a file that was not meant to be replaced.
     if out.exists() and not args.force:
         raise FileExistsError(f"{out}: exists; not overwriting it (use --force)")
-    if not out.parent.is_dir():
-        raise FileNotFoundError(f"{out.parent}: output folder does not exist")
     if not args.force:
         for p in report_paths(report_dir):
             if p.exists():
@@ -91,10 +106,11 @@ def run(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f"{args.tir}: no such .tir file")
 
     from tire_model_ros.fit import FitOptions, fit_recording, write_fit_report
-    from tire_model_ros.model import TireModel, write_tir
+    from tire_model_ros.model import write_tir
+    from tire_model_ros.model.check import check_model
     from tire_model_ros.recording import open_recording
 
-    start = TireModel.from_file(args.tir)
+    start = load_model(args.tir, args.lenient)
     wheels = []
     for bag in args.bags:
         for prefix, series in open_recording(bag).items():
@@ -115,23 +131,27 @@ def run(args: argparse.Namespace) -> int:
     if options.progress is None:
         options.progress = True  # one line per stage; the live counter only on a TTY
     result = fit_recording(wheels, start, options)
-    report_path = write_fit_report(result, report_dir, overwrite=args.force)
     fitted = [st["stage"] for st in result.report["stages"] if st["status"] == "fitted"]
     note = result.report.get("note")
     if not fitted and not note:
         reasons = "; ".join(
             f"{st['stage']}: {st.get('reason', st['status'])}" for st in result.report["stages"]
         )
-        raise ValueError(
-            f"no stage could be fitted, {out} not written ({reasons}); report in {report_path}"
-        )
+        raise ValueError(f"no stage could be fitted ({reasons}); nothing written")
+    fault = check_model(result.model)
+    if fault is not None:
+        raise ValueError(f"the fitted model is not a tyre on its range: {fault}; nothing written")
     tir = result.model.tir
     if note:  # the start model explains the data: it is the result, said in the file
         tir = dataclasses.replace(
             tir, path=None, preamble=(*tir.preamble, f"! tire-model fit: {note}")
         )
         print(f"note: {note}")
-    write_tir(tir, out, overwrite=args.force)
+    report_dir.parent.mkdir(parents=True, exist_ok=True)
+    with outputs:
+        write_tir(tir, outputs.path(out))
+        report_md = write_fit_report(result, outputs.path(report_dir), overwrite=True)
+        outputs.commit()
     held = result.report["metrics"]["overall"]["heldout"]
     summary = ", ".join(
         f"{c} {held['before'][c]['rmse']:.4g} -> {held['after'][c]['rmse']:.4g}"
@@ -139,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
         if held["after"][c]["n"] and held["before"][c]["rmse"] != held["after"][c]["rmse"]
     )
     print(f"wrote {out} (stages: {', '.join(fitted) or 'none; the start model'})")
-    print(f"report {report_path}")
+    print(f"report {report_dir / report_md.name}")
     if summary:
         print(f"held-out rmse: {summary}")
     sys.stdout.flush()

@@ -12,7 +12,10 @@ Example::
 from __future__ import annotations
 
 import argparse
+from collections.abc import Mapping
 from pathlib import Path
+
+from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
 
 HELP = "record test programmes on the virtual rig"
 
@@ -32,7 +35,7 @@ def parse_spec(text: str, what: str) -> tuple[str, dict[str, str]]:
     return name, params
 
 
-def _programme_value(v: str):
+def _programme_value(v: str) -> bool | float:
     low = v.lower()
     if low in ("true", "yes", "on"):
         return True
@@ -79,6 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--rate", type=float, default=100.0, help="slip sample rate [Hz]")
     parser.add_argument("--force", action="store_true", help="overwrite BAG and its truth file")
+    add_lenient_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     if not Path(args.tir).is_file():
         raise FileNotFoundError(f"{args.tir}: no such .tir file")
     prog, popt = parse_spec(args.programme, "--programme")
-    effects: dict = {}
+    effects: dict[str, Mapping[str, str] | bool] = {}
     for spec in args.effect:
         if spec.strip().endswith(":off"):
             effects[spec.strip()[: -len(":off")]] = False
@@ -101,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
         effects[name] = params or True
     omit = [c.strip() for item in args.omit for c in item.split(",") if c.strip()]
     wheels, truth = simulate_session(
-        args.tir,
+        load_model(args.tir, args.lenient),
         prog,
         effects=effects,
         omit=omit,

@@ -14,6 +14,7 @@ Iterative quantities (Re, Rl) stop after a fixed number of steps, so no input ca
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from types import MappingProxyType
@@ -102,11 +103,14 @@ class TireModel:
         self._p_nom = _pressure_nominal(params)
 
     @classmethod
-    def from_file(cls, path) -> TireModel:
-        """Read a .tir file (``read_tir``) and build the model."""
+    def from_file(cls, path: str | os.PathLike[str], *, lenient: bool = False) -> TireModel:
+        """Read a .tir file (``read_tir``, with its ``lenient``) and build the model.
+
+        With ``lenient``, ``model.tir.notes`` lists what was let through and filled.
+        """
         from .tir import read_tir
 
-        return cls(read_tir(path))
+        return cls(read_tir(path, lenient=lenient))
 
     @property
     def tir(self) -> TirData:

@@ -21,12 +21,12 @@ Defaults policy
 
 Ranges
 ------
-``minimum``/``maximum`` bound the values the model accepts from a user (ROS parameter
-descriptors, ``TireModel.with_params``). ``strict_min`` makes the lower bound exclusive.
-Reading a .tir file enforces only the ranges in ``READ_ENFORCED`` (values without which the
-equations are undefined: divisions by FNOMIN, R0, NOMPRES, NOMTEMP, V0); other out-of-range
-values in a file are loaded as they are (MFeval's Model_Unstable.tir has PCX1 = 0) and reported by
-``check_params``.
+``minimum``/``maximum`` bound the values the model accepts, from a .tir file (``read_tir``
+refuses a value outside them, naming its line) and from a user (ROS parameter descriptors,
+``TireModel.with_params``). ``strict_min`` makes the lower bound exclusive. MFeval's
+Model_Unstable.tir, "a deliberately ill-behaved set", is refused for its VERTICAL_STIFFNESS = 0
+and PCX1 = 0. The input-range pairs (FZMIN < FZMAX, ...) must be ordered
+(``limit_pair_violations``).
 """
 
 from __future__ import annotations
@@ -40,7 +40,6 @@ __all__ = [
     "PAC2002_EQUIVALENTS",
     "PARAMETERS",
     "PRESSURE_COEFFICIENTS",
-    "READ_ENFORCED",
     "REQUIRED",
     "REQUIRED_MF6",
     "SECTION_ORDER",
@@ -52,6 +51,7 @@ __all__ = [
     "default_params",
     "describe",
     "is_required",
+    "limit_pair_violations",
     "section_of",
 ]
 
@@ -176,10 +176,6 @@ PRESSURE_COEFFICIENTS: tuple[str, ...] = (
     "PFZ1", "PCFX3", "PCFY3", "PCMZ1", "PPX1", "PPX2", "PPX3", "PPX4", "PPMX1", "PPY1", "PPY2",
     "PPY3", "PPY4", "PPY5", "QSY8", "PPZ1", "PPZ2",
 )  # fmt: skip
-# Ranges checked when reading a file (the equations divide by these).
-READ_ENFORCED: frozenset[str] = frozenset(
-    {"FNOMIN", "UNLOADED_RADIUS", "LONGVL", "NOMPRES", "NOMTEMP", "LFZO"}
-)
 
 
 def is_required(name: str, fittyp: int | None = None) -> bool:
@@ -575,18 +571,31 @@ _ORDERED_PAIRS: tuple[tuple[str, str], ...] = (
 )
 
 
-def check_limit_pairs(params: Mapping[str, float], changed: Collection[str] = ()) -> list[str]:
-    """Input-range pairs (PRESMIN < PRESMAX, ...) that are not ordered.
+def limit_pair_violations(
+    params: Mapping[str, float], changed: Collection[str] = ()
+) -> list[tuple[str, str]]:
+    """(min name, max name) of the input-range pairs (PRESMIN < PRESMAX, ...) not ordered.
 
     With ``changed`` given, only the pairs that involve one of those names are checked.
     """
     return [
-        f"{lo} ({params[lo]!r}) must be < {hi} ({params[hi]!r})"
+        (lo, hi)
         for lo, hi in _ORDERED_PAIRS
         if (not changed or lo in changed or hi in changed)
         and lo in params
         and hi in params
         and not params[lo] < params[hi]
+    ]
+
+
+def check_limit_pairs(params: Mapping[str, float], changed: Collection[str] = ()) -> list[str]:
+    """Input-range pairs (PRESMIN < PRESMAX, ...) that are not ordered, as messages.
+
+    With ``changed`` given, only the pairs that involve one of those names are checked.
+    """
+    return [
+        f"{lo} ({params[lo]!r}) must be < {hi} ({params[hi]!r})"
+        for lo, hi in limit_pair_violations(params, changed)
     ]
 
 

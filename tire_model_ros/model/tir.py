@@ -10,21 +10,43 @@ INTERFACE.md: NOMTEMP in ``[OPERATING_CONDITIONS]``, TTX1..4 / TTY1..4 in
 
 Format rules followed: ``[SECTION]`` headers, ``KEY = value`` lines, ``$`` and ``!`` comments
 (whole line or after the value), quoted strings, any case of keys and section names, CRLF/LF/CR
-line ends, blank lines. Sections this module does not know (``[SHAPE]``, load curves, vendor
-sections) are kept verbatim and written back.
+line ends, blank lines. Sections this module does not read (tables such as ``[SHAPE]`` and load
+curves, vendor blocks such as ``[GOODYEAR]``) are kept verbatim and written back.
 
 Units: ``[UNITS]`` must be SI (meter, newton, radian(s), kg, second, pascal). A file in other
 units is refused (TirError): nothing is converted silently. A file without ``[UNITS]`` is SI.
 
 Required keys (``params.REQUIRED``): FNOMIN, UNLOADED_RADIUS, LONGVL in every file; FITTYP unless
 the file is PAC2002 (then FITTYP = 6, the MF 5.2 equation family with the MF 6.1 pressure
-terms); NOMPRES for FITTYP 61/62 and for any file with a non-zero pressure coefficient. All other
-coefficients default as documented in ``params``.
+terms); NOMPRES for FITTYP 61/62 and for any file with a non-zero pressure coefficient. No
+default can stand in for these, in any mode.
+
+What is refused, by default (each a ``TirError`` naming the file, the line and the key):
+
+* a coefficient or section the file's version needs and lacks (``versions``: what every file of
+  that FITTYP carries), or an incomplete turn-slip or temperature section;
+* an unknown section that holds a key the model reads, or whose name is a near miss of a section
+  it reads (a mistyped header, e.g. ``[LATERAL_COEFICIENTS]``);
+* a last line without a line end that holds content: the file may be cut short;
+* a value outside the range of the parameter table (``params``: FNOMIN, R0 <= 0, PCX1 <= 0, ...),
+  an input range that is empty or reversed (FZMIN >= FZMAX, PRESMIN >= PRESMAX, KPUMIN >=
+  KPUMAX, ...), FNOMIN outside the file's FZMIN..FZMAX or NOMPRES outside its PRESMIN..PRESMAX;
+* a model that is not a tyre on the file's own operating range (``check.check_model``: an output
+  not finite, or forces beyond 10 times the load), naming the coefficient whose default alone
+  would make it one when there is such a coefficient.
+
+``read_tir(path, lenient=True)`` (the CLIs' ``--lenient``) lets the first three through: missing
+needed coefficients take the defaults of ``params``, unknown sections are kept verbatim, a last
+line without a line end is read as it is; ``TirData.notes`` says each thing it let through and
+every key it filled, ``TirData.filled`` lists those keys. Invalid values, contradictory ranges
+and a model that is not a tyre are refused in both modes. All other coefficients (those no
+version needs) default as documented in ``params``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import os
 import re
@@ -38,7 +60,6 @@ from .params import (
     ALIASES,
     PARAMETERS,
     PRESSURE_COEFFICIENTS,
-    READ_ENFORCED,
     REQUIRED,
     REQUIRED_MF6,
     SECTION_ORDER,
@@ -46,7 +67,9 @@ from .params import (
     check_limit_pairs,
     check_value,
     default_params,
+    limit_pair_violations,
 )
+from .versions import Version, version_of
 
 __all__ = [
     "FITTYP_FAMILY",
@@ -88,6 +111,28 @@ _HEADER_DEFAULTS: dict[str, str] = {
 }
 # Sections parsed as key = value; any other section is kept verbatim.
 _KNOWN_SECTIONS: frozenset[str] = frozenset(SECTION_ORDER) | {"TIRE_CONDITIONS"}
+# An unknown section this close (difflib ratio) to a known name is taken for a mistyped header.
+_NEAR_MISS = 0.8
+# Nominal values that must lie in the file's own input range: (value, range min, range max).
+_NOMINAL_IN_RANGE: tuple[tuple[str, str, str], ...] = (
+    ("FNOMIN", "FZMIN", "FZMAX"),
+    ("NOMPRES", "PRESMIN", "PRESMAX"),
+)
+# The section whose coefficients shape each output of the model (where a refusal points).
+_OUTPUT_SECTION: dict[str, str] = {
+    "Fx": "LONGITUDINAL_COEFFICIENTS",
+    "Kxk": "LONGITUDINAL_COEFFICIENTS",
+    "mux": "LONGITUDINAL_COEFFICIENTS",
+    "Fy": "LATERAL_COEFFICIENTS",
+    "Kya": "LATERAL_COEFFICIENTS",
+    "muy": "LATERAL_COEFFICIENTS",
+    "Fz": "VERTICAL",
+    "Mx": "OVERTURNING_COEFFICIENTS",
+    "My": "ROLLING_COEFFICIENTS",
+    "Mz": "ALIGNING_COEFFICIENTS",
+    "t": "ALIGNING_COEFFICIENTS",
+    "Mzr": "ALIGNING_COEFFICIENTS",
+}
 
 _SECTION_RE = re.compile(r"\[\s*([A-Za-z][A-Za-z0-9_ ]*?)\s*\]\s*(?:[$!].*)?", re.ASCII)
 _KEY_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
@@ -99,8 +144,8 @@ class TirError(ValueError):
     """A .tir file that cannot be read: the message names the file, the line and the key."""
 
     def __init__(
-        self, path: str | os.PathLike | None, line: int | None, key: str | None, reason: str
-    ):
+        self, path: str | os.PathLike[str] | None, line: int | None, key: str | None, reason: str
+    ) -> None:
         self.path = None if path is None else str(path)
         self.line = line
         self.key = key
@@ -143,6 +188,9 @@ class TirData:
     extra_sections : section of each key the table does not know (written back there).
     raw_sections : unknown sections kept verbatim.
     preamble : comment lines before the first section.
+    filled : coefficients the file's version needs that the file lacked, filled with their
+        defaults (only with ``read_tir(..., lenient=True)``).
+    notes : one line per thing ``lenient`` let through (file, line, key, what was done).
     """
 
     path: str | None
@@ -157,6 +205,8 @@ class TirData:
     extra_sections: dict[str, str] = field(default_factory=dict)
     raw_sections: tuple[RawSection, ...] = ()
     preamble: tuple[str, ...] = ()
+    filled: frozenset[str] = frozenset()
+    notes: tuple[str, ...] = ()
 
     def with_params(self, updates: Mapping[str, float]) -> TirData:
         """A copy with some coefficients changed.
@@ -234,12 +284,33 @@ class _Parsed:
     texts: dict[str, _Entry] = field(default_factory=dict)
     units: dict[str, _Entry] = field(default_factory=dict)
     raw_sections: list[RawSection] = field(default_factory=list)
+    raw_header_lines: list[int] = field(default_factory=list)  # one per raw section
     preamble: list[str] = field(default_factory=list)
     renamed: dict[str, str] = field(default_factory=dict)
 
 
-def read_tir(path: str | os.PathLike) -> TirData:
-    """Read a .tir file.
+class _Refusals:
+    """What ``lenient`` lets through: raised at once when strict, else kept as notes."""
+
+    def __init__(self, lenient: bool) -> None:
+        self.lenient = lenient
+        self.notes: list[str] = []
+
+    def refuse(self, error: TirError, lenient_action: str) -> None:
+        if not self.lenient:
+            raise error
+        self.notes.append(f"{error}; --lenient: {lenient_action}")
+
+
+def read_tir(path: str | os.PathLike[str], *, lenient: bool = False) -> TirData:
+    """Read a .tir file, refusing what cannot be trusted (see the module docstring).
+
+    Parameters
+    ----------
+    path : the .tir file.
+    lenient : fill the coefficients the file's version needs and lacks with their documented
+        defaults, keep unknown sections, read a last line without a line end; every such thing
+        is listed in ``TirData.notes`` (print them), the filled keys in ``TirData.filled``.
 
     Raises
     ------
@@ -247,14 +318,27 @@ def read_tir(path: str | os.PathLike) -> TirData:
         naming the file, the line and the key, for: a file that is missing or not UTF-8, a line
         that is neither a section header, a comment nor ``KEY = value``, a key outside any
         section, an empty or non-numeric value, a duplicate key with a different value, a
-        non-SI ``[UNITS]`` entry, an unknown FITTYP, a missing required key, or a value that
-        makes the model undefined (``params.READ_ENFORCED``).
+        non-SI ``[UNITS]`` entry, an unknown FITTYP, a missing required key, a value outside
+        its valid range, a contradictory input range, a model that is not a tyre on its
+        operating range; and when not ``lenient``: a missing needed key or section, an
+        unknown section holding model keys or named like a known one, a file cut short.
     """
     name = str(path)
     text = _read_text(name)
     lines = _LINE_END_RE.split(text)
-    parsed = _parse_lines(name, lines)
-    return _build(parsed)
+    refusals = _Refusals(lenient)
+    cut = _cut_short(name, lines)
+    try:
+        parsed = _parse_lines(name, lines)
+    except TirError as exc:
+        if cut is not None and exc.line == cut.line:
+            raise cut from None  # the cut explains the unreadable last line
+        raise
+    if cut is not None:
+        refusals.refuse(cut, "read as it is")
+    tir = _build(parsed, refusals)
+    _check_model(parsed, tir)
+    return tir
 
 
 def _read_text(path: str) -> str:
@@ -277,7 +361,9 @@ def _read_text(path: str) -> str:
 
 
 def _parse_lines(path: str, lines: list[str]) -> _Parsed:
-    parsed = _Parsed(path=path, n_lines=len(lines))
+    # A text ending with a line end splits into a last empty string: not a line of the file.
+    n_lines = max(1, len(lines) - (1 if lines and not lines[-1] else 0))
+    parsed = _Parsed(path=path, n_lines=n_lines)
     section = ""  # current known section ("" = none yet)
     last_known = ""
     raw: RawSection | None = None
@@ -306,6 +392,7 @@ def _parse_lines(path: str, lines: list[str]) -> _Parsed:
             else:
                 section = ""
                 raw, raw_lines = RawSection(name, last_known, ()), []
+                parsed.raw_header_lines.append(number)
             continue
         if raw is not None:
             raw_lines.append(line)
@@ -347,6 +434,12 @@ def _parse_number(text: str) -> float | None:
     return float(text.replace("d", "e").replace("D", "e"))
 
 
+def _is_model_key(key: str) -> bool:
+    """A key the model reads (a coefficient of the table or FITTYP), under any alias."""
+    canonical = ALIASES.get(key.upper(), key.upper())
+    return canonical in PARAMETERS or canonical == "FITTYP"
+
+
 def _parse_assignment(parsed: _Parsed, section: str, number: int, stripped: str) -> None:
     path = parsed.path
     if "=" not in stripped:
@@ -364,7 +457,7 @@ def _parse_assignment(parsed: _Parsed, section: str, number: int, stripped: str)
         raise TirError(path, number, key, "key outside any [SECTION]")
     value_text, quoted = _split_value(path, number, key, rest)
     canonical = ALIASES.get(key, key)
-    coefficient = canonical in PARAMETERS or canonical == "FITTYP"
+    coefficient = _is_model_key(key)
     if section == "UNITS" and (key == "MASS" or not (coefficient or canonical in STRING_KEYS)):
         _store(parsed, parsed.units, key, _Entry(value_text, number, section, key))
         return
@@ -407,6 +500,24 @@ def _missing(
 ) -> TirError:
     line = parsed.header_lines.get(section, parsed.n_lines)
     return TirError(parsed.path, line, key, f"{why} (expected in [{section}])")
+
+
+def _cut_short(path: str, lines: list[str]) -> TirError | None:
+    """The error for a last line without a line end: the file may have been cut in it.
+
+    A whole file ends with a line end (the split then leaves an empty last string); a file
+    that does not may have lost the rest of that line and everything after it.
+    """
+    last = lines[-1].strip() if lines else ""
+    if not last:
+        return None
+    key = last.split("=", 1)[0].strip().upper() if "=" in last else None
+    return TirError(
+        path,
+        len(lines),
+        key if key and _KEY_RE.fullmatch(key) else None,
+        f"the file ends inside this line ({last[:40]!r}, no line end): it may be cut short",
+    )
 
 
 def _check_units(parsed: _Parsed) -> None:
@@ -460,23 +571,168 @@ def _check_required(parsed: _Parsed, fittyp: int) -> None:
             )  # fmt: skip
 
 
-def _build(parsed: _Parsed) -> TirData:
+def _check_unknown_sections(parsed: _Parsed, refusals: _Refusals) -> None:
+    """Refuse an unknown section that looks like a known one: it holds keys the model reads
+    (their values would be lost to defaults) or its name is a near miss of a known name."""
+    for raw, header in zip(parsed.raw_sections, parsed.raw_header_lines, strict=True):
+        for offset, text in enumerate(raw.lines, start=1):
+            key = text.split("=", 1)[0].strip() if "=" in text else ""
+            if key and _KEY_RE.fullmatch(key) and _is_model_key(key):
+                refusals.refuse(
+                    TirError(
+                        parsed.path, header + offset, key.upper(),
+                        f"in unknown section [{raw.name}] (line {header}), which is not read: "
+                        "a mistyped or misplaced section header?",
+                    ),
+                    "section kept verbatim, not read",
+                )  # fmt: skip
+                break
+        else:
+            near = difflib.get_close_matches(raw.name, _KNOWN_SECTIONS, n=1, cutoff=_NEAR_MISS)
+            if near:
+                refusals.refuse(
+                    TirError(
+                        parsed.path, header, f"[{raw.name}]",
+                        f"unknown section, not read: a mistyped [{near[0]}]?",
+                    ),
+                    "section kept verbatim, not read",
+                )  # fmt: skip
+
+
+def _needed_missing(parsed: _Parsed, version: Version) -> dict[str, list[str]]:
+    """Section -> the keys the version needs there that the file lacks, in table order.
+
+    The keys of a ``complete_if_present`` section count once its header is in the file.
+    """
+    wanted = dict(version.needed)
+    for section, keys in version.complete_if_present.items():
+        if section in parsed.header_lines:
+            wanted[section] = wanted.get(section, ()) + keys
+    missing: dict[str, list[str]] = {}
+    for keys in wanted.values():
+        for key in keys:
+            if key not in parsed.numbers:
+                missing.setdefault(PARAMETERS[key].section, []).append(key)
+    return {section: missing[section] for section in SECTION_ORDER if section in missing}
+
+
+def _needer(version: Version, section: str, key: str) -> str:
+    """Who needs ``key``: the version, or an optional section that is in the file."""
+    if key in version.needed.get(section, ()):
+        return version.name
+    owner = next(s for s, keys in version.complete_if_present.items() if key in keys)
+    return f"the [{owner}] section the file has (all or nothing)"
+
+
+def _check_needed(parsed: _Parsed, version: Version, refusals: _Refusals) -> frozenset[str]:
+    """Refuse (or, lenient, fill with defaults) what the file's version needs and lacks."""
+    missing = _needed_missing(parsed, version)
+    if not missing:
+        return frozenset()
+    every = [key for keys in missing.values() for key in keys]
+    if not refusals.lenient:
+        section, keys = next(iter(missing.items()))
+        where = "" if section in parsed.header_lines else ", a section the file lacks"
+        listed = ", ".join(every[:8]) + (", ..." if len(every) > 8 else "")
+        raise TirError(
+            parsed.path, parsed.header_lines.get(section, parsed.n_lines), keys[0],
+            f"missing from [{section}]{where}, needed by {_needer(version, section, keys[0])};"
+            f" {len(every)} missing in all ({listed}): the file may be cut short or a section "
+            "header mistyped (--lenient fills the defaults)",
+        )  # fmt: skip
+    for section, keys in missing.items():
+        filled = ", ".join(f"{key}={_format_number(PARAMETERS[key].default)}" for key in keys)
+        line = parsed.header_lines.get(section, parsed.n_lines)
+        refusals.notes.append(
+            f"{parsed.path}: line {line}: [{section}]: {len(keys)} needed coefficient(s) "
+            f"missing; --lenient: filled with defaults {filled}"
+        )
+    return frozenset(every)
+
+
+def _check_values(parsed: _Parsed) -> None:
+    """Every value within the parameter table's range (an unknown key: finite, checked)."""
+    bad = [
+        (entry, problem)
+        for key, entry in parsed.numbers.items()
+        if (problem := check_value(key, float(entry.value))) is not None
+    ]
+    if bad:
+        entry, problem = min(bad, key=lambda item: item[0].line)
+        others = ", ".join(
+            f"{e.name_in_file} (line {e.line})" for e, _ in sorted(bad, key=lambda b: b[0].line)[1:]
+        )
+        more = f"; also out of range: {others}" if others else ""
+        raise TirError(parsed.path, entry.line, entry.name_in_file, problem + more)
+
+
+def _line_of(parsed: _Parsed, key: str) -> tuple[int, str]:
+    """(line, name in the file) of a key; a default is placed at its section's header."""
+    entry = parsed.numbers.get(key)
+    if entry is not None:
+        return entry.line, entry.name_in_file
+    return parsed.header_lines.get(PARAMETERS[key].section, parsed.n_lines), key
+
+
+def _check_ranges(parsed: _Parsed, params: Mapping[str, float]) -> None:
+    """Input ranges that are empty or reversed, and nominal values outside them."""
+    for lo, hi in limit_pair_violations(params, parsed.numbers.keys()):
+        line, name = _line_of(parsed, hi if hi in parsed.numbers else lo)
+        lo_line, _ = _line_of(parsed, lo)
+        raise TirError(
+            parsed.path, line, name,
+            f"contradictory range: {lo} = {params[lo]!r} (line {lo_line}) is not below "
+            f"{hi} = {params[hi]!r}",
+        )  # fmt: skip
+    for key, lo, hi in _NOMINAL_IN_RANGE:
+        for bound in (lo, hi):
+            if bound not in parsed.numbers:
+                continue  # a default range is wide; only the file's own can contradict it
+            outside = params[key] < params[bound] if bound == lo else params[key] > params[bound]
+            if outside:
+                line, name = _line_of(parsed, key)
+                raise TirError(
+                    parsed.path, line, name,
+                    f"{key} = {params[key]!r} lies outside the file's range {lo}..{hi} "
+                    f"({params[lo]!r}..{params[hi]!r})",
+                )  # fmt: skip
+
+
+def _check_model(parsed: _Parsed, tir: TirData) -> None:
+    """Refuse a model that is not a tyre on its own operating range (``check.check_model``)."""
+    from .check import check_model
+    from .mf import TireModel
+
+    fault = check_model(TireModel(tir))
+    if fault is None:
+        return
+    if fault.causes:
+        line, name = _line_of(parsed, fault.causes[0])
+    else:
+        line = parsed.header_lines.get(_OUTPUT_SECTION.get(fault.output, ""), parsed.n_lines)
+        name = fault.output
+    raise TirError(
+        parsed.path, line, name, f"the model is not a tyre on the file's operating range: {fault}"
+    )
+
+
+def _build(parsed: _Parsed, refusals: _Refusals) -> TirData:
     _check_units(parsed)
     fmt_entry = parsed.texts.get("PROPERTY_FILE_FORMAT")
     is_pac = fmt_entry is not None and str(fmt_entry.value).strip().upper() == "PAC2002"
     source_format = "PAC2002" if is_pac else "MF"
     fittyp, fittyp_in_file = _fittyp(parsed, source_format)
     _check_required(parsed, fittyp)
-    for key in READ_ENFORCED:
-        entry = parsed.numbers.get(key)
-        if entry is not None and (problem := check_value(key, float(entry.value))) is not None:
-            raise TirError(parsed.path, entry.line, entry.name_in_file, problem)
+    _check_unknown_sections(parsed, refusals)
+    filled = _check_needed(parsed, version_of(fittyp_in_file), refusals)
+    _check_values(parsed)
 
     params = default_params()
     given = {key: float(entry.value) for key, entry in parsed.numbers.items()}
     params.update(given)
     if "INFLPRES" not in given:
         params["INFLPRES"] = params["NOMPRES"]
+    _check_ranges(parsed, params)
     extra = {
         key: entry.section
         for key, entry in [*parsed.numbers.items(), *parsed.texts.items()]
@@ -495,6 +751,8 @@ def _build(parsed: _Parsed) -> TirData:
         extra_sections=extra,
         raw_sections=tuple(parsed.raw_sections),
         preamble=tuple(parsed.preamble),
+        filled=filled,
+        notes=tuple(refusals.notes),
     )
 
 
@@ -551,9 +809,9 @@ def _body_lines(tir: TirData) -> dict[str, list[str]]:
     """The key lines of every known section, in table order."""
     body: dict[str, list[str]] = {name: [] for name in SECTION_ORDER}
     header = {**_HEADER_DEFAULTS, **{k: v for k, v in tir.strings.items() if k in _HEADER_DEFAULTS}}
-    for key, value in header.items():
+    for key, text in header.items():
         body["MDI_HEADER"].append(
-            _line(key, value if _parse_number(value) is not None else _quote(value))
+            _line(key, text if _parse_number(text) is not None else _quote(text))
         )
     units = {**_SI_WRITE, **tir.units}
     body["UNITS"] = [_line(k, _quote(v)) for k, v in units.items()]
@@ -563,11 +821,11 @@ def _body_lines(tir: TirData) -> dict[str, list[str]]:
         else tir.fittyp
     )
     body["MODEL"].append(_line("FITTYP", str(fittyp), "Magic Formula version number"))
-    for key, value in tir.strings.items():
+    for key, text in tir.strings.items():
         if key in _HEADER_DEFAULTS:
             continue
         section = STRING_KEYS.get(key) or tir.extra_sections.get(key, "MODEL")
-        body.setdefault(section, []).append(_line(key, _quote(value)))
+        body.setdefault(section, []).append(_line(key, _quote(text)))
     for name, spec in PARAMETERS.items():
         value = tir.params.get(name, spec.default)
         if _worth_writing(tir, name, value):
@@ -626,7 +884,7 @@ def tir_text(tir: TirData) -> str:
     return "\n".join(out).rstrip("\n") + "\n"
 
 
-def write_tir(tir: TirData, path: str | os.PathLike, *, overwrite: bool = False) -> None:
+def write_tir(tir: TirData, path: str | os.PathLike[str], *, overwrite: bool = False) -> None:
     """Write ``tir`` as a standard .tir file, atomically (temporary file + rename).
 
     Every coefficient is written (defaults included) with repr() precision, so reading the file

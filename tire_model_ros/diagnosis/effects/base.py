@@ -14,7 +14,8 @@ more of four places, which the predictor (:mod:`..predict`) composes:
 Beyond its equations, an effect model says where in the operating range it can show
 (``support``), which simpler models it must beat to be believed (``controls``: a memoryless
 twin, a time-scrambled driver, a plain time trend), whether it is a constant physics of the
-session (``stable``: fitted on two independent parts of it, it does the same to the forces), and
+session (``stable_in_time``: fitted on the early and on the late half, it does the same to the
+forces), and
 what a forward model carries of it (``carry``, the node's effects file). The engine never asks
 which effect it is.
 """
@@ -54,10 +55,8 @@ class EffectModel:
     word: ClassVar[str] = ""
     label: str = ""  # which model of the word this is
     concealed: bool = False  # fitted without the channel that would show it
-    # A physics of the session does the same to the forces fitted on either selection fold
-    # (``stable``) and on the early or the late half (``stable_in_time``; not a step, nor a
-    # state that the first half sees rise and the second sees saturate).
-    stable = True
+    # A physics of the session does the same to the forces fitted on the early or on the late
+    # half (not a step, nor a state that the first half sees rise and the second saturate).
     stable_in_time = True
 
     def __init__(self, params: list[Param], starts: list[dict[str, float]] | None = None):

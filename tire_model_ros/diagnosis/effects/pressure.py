@@ -162,7 +162,8 @@ class RecordedPressure(EffectModel):
             "recorded": "recorded pressure, pressure terms refitted",
             "trend": "control: a pressure ramp in time",
         }[mode]
-        super().__init__(coefficient_params(ctx, _terms(ctx), [0.1] * 8, span=30.0))
+        names = _terms(ctx)
+        super().__init__(coefficient_params(ctx, names, [0.1] * len(names), span=30.0))
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
