@@ -22,6 +22,7 @@ $(STAMP): requirements.lock setup.py setup.cfg package.xml
 test: venv
 	$(VENV)/bin/ruff check tire_model_ros test bench realities
 	$(VENV)/bin/ruff format --check tire_model_ros test bench realities
+	$(VENV)/bin/mypy
 	$(PY) -m pytest -q test
 
 demo: venv
@@ -39,6 +40,7 @@ proof: venv
 lint: venv
 	$(VENV)/bin/ruff check tire_model_ros test bench realities
 	$(VENV)/bin/ruff format --check tire_model_ros test bench realities
+	$(VENV)/bin/mypy
 
 clean:
 	rm -rf $(VENV) build install log .pytest_cache

@@ -15,8 +15,20 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", glob("config/*")),
     ],
-    package_data={PACKAGE: ["data/*.tir"]},
-    install_requires=["setuptools", "numpy", "scipy"],
+    # Every third-party module the offline tool imports: ``pip install .`` alone gives a
+    # working ``tire-model`` (eval, simulate, fit, diagnose, info). The node, play and record
+    # need ROS 2 (rclpy and the message packages: package.xml), which pip does not provide.
+    install_requires=[
+        "setuptools",
+        "numpy>=1.24",
+        "scipy>=1.10",
+        "numba>=0.59",
+        "llvmlite>=0.42",  # imported directly by the kernels (model/jit.py, model/vmath.py)
+        "mcap>=1.1",
+        "rosbags>=0.10",
+        "matplotlib>=3.6",
+        "PyYAML>=6.0",
+    ],
     zip_safe=True,
     maintainer="tire_model_ros developers",
     maintainer_email="dev@tire-model-ros.invalid",
@@ -27,8 +39,8 @@ setup(
     python_requires=">=3.11",
     entry_points={
         "console_scripts": [
-            "tire_model_node = tire_model_ros.node:main",
-            "tire-model-node = tire_model_ros.node:main",
+            "tire_model_node = tire_model_ros.ros.node:main",
+            "tire-model-node = tire_model_ros.ros.node:main",
             "tire-model = tire_model_ros.cli:main",
         ],
     },

@@ -14,7 +14,7 @@ other load on the machine does not inflate as much as latency.
 Scheduling, the same for all three processes (driver, node, echo node): ``--rt-priority N``
 (default 10; 0 = normal scheduling) puts every thread on SCHED_FIFO N: the node through its
 ``rt_priority`` parameter, the echo node and the driver through the same
-``tire_model_ros.node.realtime.tune``; ``--server-cpus``/``--driver-cpus`` pin them. Each
+``tire_model_ros.ros.realtime.tune``; ``--server-cpus``/``--driver-cpus`` pin them. Each
 process freezes its start-up heap (the node does so itself), so that no full garbage
 collection of ~130k start-up objects (16-54 ms measured) lands in a measurement. On a
 machine shared with other work, normal scheduling leaves the tail to whoever else is running
@@ -52,7 +52,7 @@ import contextlib
 
 from ros_util import NodeProcess, claim_domain_id, node_command, ros_env, wait_for
 
-from tire_model_ros.node import realtime
+from tire_model_ros.ros import realtime
 
 CAR = ("/car/fl", "/car/fr", "/car/rl", "/car/rr")
 _STAMP = struct.Struct("<iI")
@@ -77,7 +77,7 @@ def echo_main(
     from rclpy.executors import ExternalShutdownException
     from rclpy.experimental import EventsExecutor
 
-    from tire_model_ros.node.ros_node import spin
+    from tire_model_ros.ros.node import spin
 
     rclpy.init()
     node = rclpy.create_node("echo_node")

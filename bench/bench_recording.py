@@ -16,8 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tire_model_ros.recording import cdr
-from tire_model_ros.recording.bag import read_raw, read_recording, write_recording
+from tire_model_ros.recording import cdr, read_raw, read_recording, write_recording
 from tire_model_ros.recording.series import WheelSeries
 
 TOPICS_PER_SAMPLE = 6  # slip, load, pressure, temperature, velocity, measured_forces

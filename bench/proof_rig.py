@@ -253,7 +253,7 @@ def tool() -> list[str]:
 
 
 def default_tir() -> Path:
-    from tire_model_ros.node.params import default_tir_path
+    from tire_model_ros.wheel.params import default_tir_path
 
     path = default_tir_path()
     if not path:

@@ -53,7 +53,7 @@ def claim_domain_id() -> int:
 
 
 def exited_cleanly(rc: int | None, log: str) -> bool:
-    """Exit status 0, or 1 from ``tire_model_ros.teardown.deadline``: the process had done its
+    """Exit status 0, or 1 from ``tire_model_ros.ros.teardown.deadline``: the process had done its
     work and Fast DDS hung in teardown (an upstream deadlock, not ours). That case passes with
     a warning carrying the stacks, so it stays visible without failing the test."""
     if rc == 1 and DEADLINE_DUMP.search(log):
@@ -89,7 +89,7 @@ def node_command() -> list[str]:
     script = Path(sys.executable).parent / "tire-model-node"
     if script.exists():
         return [str(script)]
-    return [sys.executable, "-m", "tire_model_ros.node"]
+    return [sys.executable, "-m", "tire_model_ros.ros.node"]
 
 
 def wait_for(predicate: Callable[[], object], timeout: float, what: str, interval=0.02):

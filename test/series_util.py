@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.recording import WheelSeries
+from tire_model_ros.vocabulary import NS_PER_S as NS
+from tire_model_ros.vocabulary import SERIES_CHANNELS
 
-NS = 1_000_000_000
 T0 = 1_700_000_000 * NS  # a realistic epoch: float seconds cannot hold these to the ns
-CHANNELS = ("kappa", "alpha", "gamma", "Fz", "p", "T", "Vx",
-            "Fx", "Fy", "Fz_meas", "Mx", "My", "Mz")  # fmt: skip
 
 
 def random_wheel(prefix="/rig/wheel", n=200, *, p=True, T=True, Vx=True, seed=0, t0_ns=T0,
@@ -31,7 +30,7 @@ def assert_same(a: WheelSeries, b: WheelSeries) -> None:
     """Same prefix, identical ns stamps, and every channel bit-identical (or both absent)."""
     assert a.prefix == b.prefix
     np.testing.assert_array_equal(a.meta["t_ns"], b.meta["t_ns"])
-    for name in CHANNELS:
+    for name in SERIES_CHANNELS:
         x, y = getattr(a, name), getattr(b, name)
         assert (x is None) == (y is None), name
         if x is not None:

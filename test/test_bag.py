@@ -12,20 +12,22 @@ import pytest
 import yaml
 from series_util import NS, T0, assert_same, random_wheel
 
-from tire_model_ros.recording import cdr
-from tire_model_ros.recording.bag import (
-    FLUID_PRESSURE,
-    TEMPERATURE,
-    TWIST_STAMPED,
-    VECTOR3_STAMPED,
-    WRENCH_STAMPED,
+from tire_model_ros.recording import (
     RecordingError,
+    WheelSeries,
+    cdr,
     read_raw,
     read_recording,
     write_recording,
     write_topics,
 )
-from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.vocabulary import (
+    FLUID_PRESSURE,
+    TEMPERATURE,
+    TWIST_STAMPED,
+    VECTOR3_STAMPED,
+    WRENCH_STAMPED,
+)
 
 
 def wheel(prefix="/rig/wheel", n=200, **kwargs) -> WheelSeries:
@@ -178,7 +180,7 @@ def wrench(fz=None, fx=None):
 def write_raw_bag(path, topics, storage="mcap"):
     """Topics written in the given (bag) order with log time = header stamp + a lag that
     reverses their log order, so a reader that used log times would align differently."""
-    from tire_model_ros.recording.bag import BagWriter
+    from tire_model_ros.recording import BagWriter
 
     with BagWriter(path, storage=storage) as writer:
         for topic, (msgtype, _, _) in topics.items():
@@ -496,7 +498,7 @@ def test_bag_module_does_not_import_ros():
     import sys
 
     code = (
-        "import sys, tire_model_ros.recording.bag, tire_model_ros.recording.info; "
+        "import sys, tire_model_ros.recording, tire_model_ros.recording.info; "
         "print([m for m in sys.modules if m.startswith(('rclpy', 'rosidl'))])"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -612,7 +614,7 @@ def write_with_mcap_package(path: Path, w: WheelSeries, **options) -> None:
     channels with QoS metadata), written by the independent ``mcap`` package."""
     from mcap.writer import Writer
 
-    from tire_model_ros.recording.bag import _wheel_channels
+    from tire_model_ros.recording.write import _wheel_channels
 
     t_ns = w.meta["t_ns"]
     with open(path, "wb") as f:
@@ -716,7 +718,7 @@ def test_fast_mcap_writer_is_valid_for_independent_readers(tmp_path):
     from mcap.stream_reader import StreamReader
     from rosbags.rosbag2 import Reader
 
-    from tire_model_ros.recording.bag import BagWriter, _wheel_channels
+    from tire_model_ros.recording.write import BagWriter, _wheel_channels
 
     w = wheel(n=4000)
     write_recording(tmp_path / "fast", [w], rates={"temperature": 50})

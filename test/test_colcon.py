@@ -18,13 +18,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from ros_util import NodeProcess, RosClient, exited_cleanly, ros_env, wait_for
 
 from tire_model_ros.model import TireModel
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(120)]
 
-ROOT = Path(__file__).resolve().parents[1]
 SOURCES = ("setup.py", "setup.cfg", "package.xml", "resource", "config", "tire_model_ros")
 
 

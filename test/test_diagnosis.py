@@ -10,11 +10,10 @@ import dataclasses
 import json
 import os
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MF61_TIR, ROOT, TOOL
 
 from tire_model_ros.diagnosis import Diagnosis, diagnose
 from tire_model_ros.diagnosis.dynamics import relaxed_slip, thermal_state_K
@@ -24,28 +23,7 @@ from tire_model_ros.diagnosis.result import MZ_COEFS
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects
 from tire_model_ros.rig import simulate_session
-
-ROOT = Path(__file__).resolve().parents[1]
-TIR = ROOT.parent / "shared" / "reference" / "tir" / "MagicFormula61_Parameters.tir"
-TOOL = str(Path(sys.executable).parent / "tire-model")
-WORDS = {
-    "temperature",
-    "pressure",
-    "relaxation",
-    "camber",
-    "combined_slip",
-    "speed",
-    "offset",
-    "time_delay",
-    "drift",
-    "sidewall_contact",
-    "none",
-}
-
-
-@pytest.fixture(scope="module")
-def model() -> TireModel:
-    return TireModel.from_file(TIR)
+from tire_model_ros.vocabulary import EFFECT_WORDS
 
 
 def _session(model, effects, omit=(), seed=3):
@@ -60,7 +38,7 @@ def _check_json(doc: dict) -> None:
     assert set(doc) >= {"effects", "fit"}
     assert doc["effects"], "effects is never empty ('none' when nothing is found)"
     for e in doc["effects"]:
-        assert e["name"] in WORDS
+        assert e["name"] in EFFECT_WORDS
         assert isinstance(e["concealed"], bool)
         assert e["channel"] in ("Fx", "Fy", "Mz")
         assert isinstance(e["where"], str) and e["where"]
@@ -248,7 +226,7 @@ def test_offset_is_named_constant_and_sized(model):
 def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
     """Noise only: 'none', nothing invented; JSON/report/improved .tir written atomically;
     scores against the noise-free twin (--reference) far below the raw ones."""
-    from tire_model_ros.recording.bag import write_recording
+    from tire_model_ros.recording import write_recording
 
     wheels, _ = _session(model, {}, seed=5)
     bag = tmp_path / "null_bag"
@@ -260,11 +238,11 @@ def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
     report = tmp_path / "report"
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
     cmd = [
-        TOOL,
+        *TOOL,
         "diagnose",
         str(bag),
         "--tir",
-        str(TIR),
+        str(MF61_TIR),
         "--json",
         str(out_json),
         "--report",
@@ -295,7 +273,7 @@ def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
 
 
 def test_cli_reports_a_missing_bag_clearly(tmp_path):
-    cmd = [TOOL, "diagnose", str(tmp_path / "nope"), "--tir", str(TIR)]
+    cmd = [*TOOL, "diagnose", str(tmp_path / "nope"), "--tir", str(MF61_TIR)]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
     assert res.returncode == 1
     assert "nope" in res.stderr
@@ -303,7 +281,7 @@ def test_cli_reports_a_missing_bag_clearly(tmp_path):
 
 def test_cli_refuses_a_missing_reference_before_diagnosing(tmp_path):
     out_json = tmp_path / "d.json"
-    cmd = [TOOL, "diagnose", str(ROOT / "bags" / "flat_trac_nominal"), "--tir", str(TIR),
+    cmd = [*TOOL, "diagnose", str(ROOT / "bags" / "flat_trac_nominal"), "--tir", str(MF61_TIR),
            "--json", str(out_json), "--reference", str(tmp_path / "twin"),
            "--reference-json", str(tmp_path / "clean.json")]  # fmt: skip
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)

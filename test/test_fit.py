@@ -13,11 +13,10 @@ import json
 import math
 import os
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MF61_TIR, TOOL
 
 from tire_model_ros.fit import FitOptions, fit_coefficients, fit_recording, split_sweeps
 from tire_model_ros.fit.report import write_fit_report
@@ -26,17 +25,13 @@ from tire_model_ros.fit.sweeps import split_segments
 from tire_model_ros.model import TireModel, read_tir, write_tir
 from tire_model_ros.recording.series import WheelSeries
 
-ROOT = Path(__file__).resolve().parents[1]
-REF = ROOT.parent / "shared" / "reference" / "tir" / "MagicFormula61_Parameters.tir"
-if not REF.exists():  # the shared folder sits beside the project root
-    REF = Path("/work/shared/reference/tir/MagicFormula61_Parameters.tir")
 DEG = math.pi / 180.0
 
 
-def perturbed(base: TireModel) -> TireModel:
+def perturbed(model: TireModel) -> TireModel:
     """The 'real' tyre: friction and stiffness 5-8 % off, other pressure and temperature terms."""
-    P = base.params
-    return base.with_params(
+    P = model.params
+    return model.with_params(
         {
             "PDX1": P["PDX1"] * 0.94,
             "PKX1": P["PKX1"] * 1.07,
@@ -55,24 +50,19 @@ def perturbed(base: TireModel) -> TireModel:
 
 
 @pytest.fixture(scope="module")
-def base() -> TireModel:
-    return TireModel.from_file(REF)
-
-
-@pytest.fixture(scope="module")
-def session(base):
+def session(model):
     """A flat-trac session of the perturbed tyre: its TTX/TTY act on the tread temperature."""
     from tire_model_ros.rig import simulate_session
 
-    truth = perturbed(base)
+    truth = perturbed(model)
     wheels, info = simulate_session(truth, "flat_trac", effects=["model_temperature"], seed=5)
     return truth, wheels, info
 
 
 @pytest.fixture(scope="module")
-def fitted(base, session):
+def fitted(model, session):
     _, wheels, _ = session
-    return fit_recording(wheels, base, FitOptions(progress=False))
+    return fit_recording(wheels, model, FitOptions(progress=False))
 
 
 # --- sweeps ----------------------------------------------------------------------------------
@@ -170,15 +160,15 @@ def test_split_sweeps_on_the_rig_matches_its_sweeps(session):
 # --- fit_coefficients ------------------------------------------------------------------------
 
 
-def test_fit_coefficients_recovers_two_coefficients(base, session):
+def test_fit_coefficients_recovers_two_coefficients(model, session):
     truth, wheels, _ = session
     lat = [s.select(sample_mask(s, "pure_lat")) for s in wheels]
     # Start from the true tyre with the two coefficients reset to the reference file's values
     # (8 % and 7 % off); the other coefficients are right, so both must come back to 1 %.
-    start = truth.with_params({k: base.params[k] for k in ("PDY1", "PKY1")})
-    model, info = fit_coefficients(start, lat, ["PDY1", "PKY1"], channels=("Fy",))
+    start = truth.with_params({k: model.params[k] for k in ("PDY1", "PKY1")})
+    got, info = fit_coefficients(start, lat, ["PDY1", "PKY1"], channels=("Fy",))
     for k in ("PDY1", "PKY1"):
-        assert abs(model.params[k] / truth.params[k] - 1) < 0.01, k
+        assert abs(got.params[k] / truth.params[k] - 1) < 0.01, k
         assert 0 < info["stderr"][k] < abs(truth.params[k])
     assert info["rmse_after"]["Fy"] < 0.5 * info["rmse_before"]["Fy"]
     assert info["nfev"] > 1 and info["success"]
@@ -202,18 +192,18 @@ def test_fit_coefficients_recovers_two_coefficients(base, session):
     )
 
 
-def test_fit_coefficients_rejects_bad_input(base, session):
+def test_fit_coefficients_rejects_bad_input(model, session):
     _, wheels, _ = session
     with pytest.raises(ValueError, match="PDY99"):
-        fit_coefficients(base, wheels, ["PDY99"], channels=("Fy",))
+        fit_coefficients(model, wheels, ["PDY99"], channels=("Fy",))
     with pytest.raises(ValueError, match="too few samples"):
-        fit_coefficients(base, [wheels[0].select(np.arange(10))], ["PDY1"], channels=("Fy",))
+        fit_coefficients(model, [wheels[0].select(np.arange(10))], ["PDY1"], channels=("Fy",))
     with pytest.raises(ValueError, match="channel"):
-        fit_coefficients(base, wheels, ["PDY1"], channels=("Fq",))
+        fit_coefficients(model, wheels, ["PDY1"], channels=("Fq",))
     s = wheels[0]
     nan = WheelSeries(s.prefix, s.t, s.kappa, s.alpha, s.gamma, s.Fz, Fy=np.full(len(s), np.nan))
     with pytest.raises(ValueError, match="too few samples"):
-        fit_coefficients(base, [nan], ["PDY1"], channels=("Fy",))
+        fit_coefficients(model, [nan], ["PDY1"], channels=("Fy",))
 
 
 # --- the staged fit --------------------------------------------------------------------------
@@ -299,7 +289,7 @@ def test_stages_report_and_checks(fitted):
     assert m["PCX1"] > 0 and m["PCY1"] > 0 and m["PDX1"] > 0 and m["PEX1"] <= 1 and m["PEY1"] <= 1
 
 
-def test_skipped_stages_say_why(base, session):
+def test_skipped_stages_say_why(model, session):
     _, wheels, _ = session
     s = wheels[0]
     # no pressure, no temperature, lateral samples only
@@ -308,7 +298,7 @@ def test_skipped_stages_say_why(base, session):
     lat.T = None
     res = fit_recording(
         [lat],
-        base,
+        model,
         FitOptions(
             progress=False, max_samples=3000, stages=["Fy0", "pressure", "temperature", "Fx0"]
         ),
@@ -323,20 +313,20 @@ def test_skipped_stages_say_why(base, session):
         nan = WheelSeries(
             s.prefix, s.t, s.kappa, s.alpha, s.gamma, s.Fz, Fx=np.full(len(s), np.nan)
         )
-        fit_recording([nan], base, FitOptions(progress=False))
+        fit_recording([nan], model, FitOptions(progress=False))
 
 
-def test_physical_checks_and_warmup(base, session):
+def test_physical_checks_and_warmup(model, session):
     _, wheels, _ = session
     s = wheels[0]
-    assert physical_checks("Fy0", base, [s]) == {}
-    bad = physical_checks("Fy0", base.with_params({"PEY1": 3.0}), [s])
+    assert physical_checks("Fy0", model, [s]) == {}
+    bad = physical_checks("Fy0", model.with_params({"PEY1": 3.0}), [s])
     assert set(bad) == {"Ey <= 1 (4.E24)"} and 0 < bad["Ey <= 1 (4.E24)"] <= 1.0
-    bad = physical_checks("combined", base.with_params({"REX1": 2.0}), [s])
+    bad = physical_checks("combined", model.with_params({"REX1": 2.0}), [s])
     assert set(bad) == {"Exa <= 1 (4.E56)"} and bad["Exa <= 1 (4.E56)"] == 1.0
-    assert past_peak(base, [s]) == {"long": True, "lat": True}
+    assert past_peak(model, [s]) == {"long": True, "lat": True}
     small = s.select((np.abs(s.alpha) < 2 * DEG) & (np.abs(s.kappa) < 0.02))
-    assert past_peak(base, [small]) == {"long": False, "lat": False}
+    assert past_peak(model, [small]) == {"long": False, "lat": False}
     keep = usable_mask(s, FitOptions(warmup_s=30.0))
     assert not keep[s.t < s.t[0] + 29.9].any() and keep[s.t > s.t[0] + 30.1].all()
     if s.T is not None:
@@ -344,13 +334,13 @@ def test_physical_checks_and_warmup(base, session):
         assert np.array_equal(cold, s.T >= 30.0)
 
 
-def test_fit_that_does_not_beat_noise_keeps_start_values(base):
+def test_fit_that_does_not_beat_noise_keeps_start_values(model):
     from tire_model_ros.rig import simulate_session
 
     # The rig's tyre is the start model itself (only sensor noise added): nothing to gain, so
     # the stages must keep the start values instead of fitting the noise.
-    wheels, _ = simulate_session(base, "lateral_sweeps", seed=2, omit=["temperature"])
-    res = fit_recording(wheels, base, FitOptions(progress=False, stages=["Fy0"]))
+    wheels, _ = simulate_session(model, "lateral_sweeps", seed=2, omit=["temperature"])
+    res = fit_recording(wheels, model, FitOptions(progress=False, stages=["Fy0"]))
     st = res.report["stages"][1]
     assert st["stage"] == "Fy0" and st["status"] == "not significant", st
     assert "start values kept" in st["reason"]
@@ -391,16 +381,15 @@ def test_report_files(fitted, tmp_path):
 
 def _cli(*args, cwd):
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
-    exe = Path(sys.executable).parent / "tire-model"
     return subprocess.run(
-        [str(exe), "fit", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=240
+        [*TOOL, "fit", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=240
     )
 
 
-def test_cli_end_to_end(base, tmp_path):
+def test_cli_end_to_end(model, tmp_path):
     from tire_model_ros.rig import simulate_session, write_session
 
-    truth = perturbed(base)
+    truth = perturbed(model)
     wheels, info = simulate_session(truth, "lateral_sweeps", seed=2, omit=["temperature"])
     bag = tmp_path / "lat.mcap"
     write_session(bag, wheels, info)
@@ -409,13 +398,13 @@ def test_cli_end_to_end(base, tmp_path):
     write_session(bag2, wheels2, info2)
     out = tmp_path / "out.tir"
     stages = "Fx0,Fy0,temperature"
-    r = _cli(str(bag), str(bag2), "--tir", str(REF), "-o", str(out), "--stages", stages,
+    r = _cli(str(bag), str(bag2), "--tir", str(MF61_TIR), "-o", str(out), "--stages", stages,
              cwd=tmp_path)  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert "fit Fy0" in r.stderr and "no temperature channel" in r.stderr, r.stderr
-    model = TireModel.from_file(out)
-    assert model.params["PDY1"] == pytest.approx(truth.params["PDY1"], rel=0.03)
-    assert model.params["PDX1"] == pytest.approx(truth.params["PDX1"], rel=0.03)  # 2nd bag
+    got = TireModel.from_file(out)
+    assert got.params["PDY1"] == pytest.approx(truth.params["PDY1"], rel=0.03)
+    assert got.params["PDX1"] == pytest.approx(truth.params["PDX1"], rel=0.03)  # 2nd bag
     rep = tmp_path / "out_fit_report"
     assert (rep / "fit_report.md").exists() and (rep / "fit_Fy.png").exists()
     data = json.loads((rep / "fit_report.json").read_text())
@@ -424,13 +413,13 @@ def test_cli_end_to_end(base, tmp_path):
         < data["metrics"]["overall"]["heldout"]["before"]["Fy"]["rmse"]
     )
     stamp = out.read_bytes()
-    r2 = _cli(str(bag), "--tir", str(REF), "-o", str(out), cwd=tmp_path)
+    r2 = _cli(str(bag), "--tir", str(MF61_TIR), "-o", str(out), cwd=tmp_path)
     assert r2.returncode == 1 and "exists" in r2.stderr and "Traceback" not in r2.stderr
     assert out.read_bytes() == stamp
     r3 = _cli(
         str(bag),
         "--tir",
-        str(REF),
+        str(MF61_TIR),
         "-o",
         str(tmp_path / "x.tir"),
         "--stages",
@@ -443,7 +432,7 @@ def test_cli_end_to_end(base, tmp_path):
     r4 = _cli(
         str(tmp_path / "missing.mcap"),
         "--tir",
-        str(REF),
+        str(MF61_TIR),
         "-o",
         str(tmp_path / "y.tir"),
         cwd=tmp_path,

@@ -6,18 +6,17 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import DEFAULT_TIR, TOOL
 
 from tire_model_ros.fit import FitOptions, fit_recording
 from tire_model_ros.fit.report import figures
 from tire_model_ros.model import TireModel
 from tire_model_ros.rig import simulate_session, write_session
 
-TIR = Path(__file__).resolve().parents[1] / "config" / "default.tir"
+TIR = DEFAULT_TIR
 
 
 @pytest.fixture(scope="module")
@@ -82,9 +81,8 @@ def test_start_model_that_explains_the_data_is_written_with_a_note(tmp_path):
         programme_options={"rate_scale": 2.0},
     )  # fmt: skip
     write_session(tmp_path / "same", wheels, info)
-    exe = Path(sys.executable).parent / "tire-model"
     r = subprocess.run(
-        [str(exe), "fit", "same", "--tir", str(TIR), "-o", "out.tir", "--stages", "Fy0"],
+        [*TOOL, "fit", "same", "--tir", str(TIR), "-o", "out.tir", "--stages", "Fy0"],
         cwd=tmp_path, capture_output=True, text=True, timeout=600,
         env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"},
     )  # fmt: skip

@@ -8,11 +8,11 @@ from __future__ import annotations
 import math
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import DEFAULT_TIR, TOOL
 from scipy.io import savemat
 
 from tire_model_ros.importers import MeasurementError, import_file
@@ -34,11 +34,9 @@ TTC_USCS = {**TTC_METRIC, "V": "mph", "RL": "in", "RE": "in", "P": "psi", "FX": 
 
 
 def _tm(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    exe = Path(sys.executable).parent / "tire-model"
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
-    return subprocess.run(
-        [str(exe), *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=600
-    )
+    return subprocess.run([*TOOL, *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=600)  # fmt: skip
 
 
 def ttc_run(n: int = N_ROWS, seed: int = 0) -> dict[str, np.ndarray]:
@@ -317,7 +315,7 @@ def test_csv_with_byte_order_mark(tmp_path):
     # the eval reader takes the same byte-order mark
     (tmp_path / "in.csv").write_text("Fz,kappa,alpha,gamma,Vx,p\n4000,0.01,0.02,0,16.7,2.2e5\n",
                                      encoding="utf-8-sig")  # fmt: skip
-    tir = Path(__file__).resolve().parents[1] / "config" / "default.tir"
+    tir = DEFAULT_TIR
     r = _tm("eval", "--tir", str(tir), "in.csv", "-o", "out.csv", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "out.csv").read_text().startswith("Fz,kappa,alpha,gamma,Vx,p,Fx,Fy")

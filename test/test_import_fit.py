@@ -9,27 +9,25 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from conftest import DEFAULT_TIR, TOOL
 
 from tire_model_ros.fit import FitOptions, fit_recording
 from tire_model_ros.model import TireModel
 from tire_model_ros.recording import open_recording
 
-TIR = Path(__file__).resolve().parents[1] / "config" / "default.tir"
+TIR = DEFAULT_TIR
 STAGES = ["Fy0", "Mz0", "temperature"]
 
 pytestmark = pytest.mark.slow
 
 
 def _tm(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    exe = Path(sys.executable).parent / "tire-model"
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
-    return subprocess.run(
-        [str(exe), *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=900
-    )
+    return subprocess.run([*TOOL, *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=900)  # fmt: skip
 
 
 def _ttc_session(d: Path, options: str) -> Path:

@@ -9,24 +9,16 @@ from __future__ import annotations
 
 import cmath
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MF61_TIR, requires_reference
 
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.turnslip import residual_cos
 
-ROOT = Path(__file__).resolve().parents[1]
-TIRS = (ROOT / ".." / "shared" / "reference" / "tir").resolve()
-TIR61 = TIRS / "MagicFormula61_Parameters.tir"
-pytestmark = pytest.mark.skipif(not TIR61.is_file(), reason=f"{TIR61} missing")
+pytestmark = requires_reference
 FORCES = ("Fx", "Fy", "Mx", "My", "Mz", "Mzr", "t", "Kya", "muy")
-
-
-@pytest.fixture(scope="module")
-def model() -> TireModel:
-    return TireModel.from_file(TIR61)
 
 
 def _grid():
@@ -151,7 +143,7 @@ def test_unloaded_wheel_gives_zero_in_every_mode(model, turn_slip, alpha_star) -
 
 
 def test_turn_slip_coefficients_come_from_the_tir_file(model, tmp_path) -> None:
-    text = TIR61.read_text()
+    text = MF61_TIR.read_text()
     assert "PDYP1                    =    0.4" in text
     changed = tmp_path / "spin.tir"
     changed.write_text(text.replace("PDYP1                    =    0.4",

@@ -25,14 +25,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MF61_TIR, MFEVAL_DIR, TIR_DIR
 
 from tire_model_ros.model import TireModel
 
-ROOT = Path(__file__).resolve().parents[1]
-REF = (ROOT / ".." / "shared" / "reference").resolve()
-MFEVAL = REF / "mfeval"
-TIR = {"MF61": REF / "tir" / "MagicFormula61_Parameters.tir",
-       "MF62": REF / "tir" / "MagicFormula62_Parameters.tir"}  # fmt: skip
+MFEVAL = MFEVAL_DIR
+TIR = {"MF61": MF61_TIR, "MF62": TIR_DIR / "MagicFormula62_Parameters.tir"}
 
 FORCES = ("Fx", "Fy", "Mz", "Mx", "My")
 DERIVED = ("Kya", "Kxk", "mux", "muy", "Re", "t", "sigmax", "sigmay", "Mzr", "Rl", "rho",

@@ -11,20 +11,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MF61_TIR, ROOT, TIR_DIR, TOOL, requires_reference
 
 from tire_model_ros.model import MFOutput, TireModel, read_tir
 from tire_model_ros.model import coef as c
 
-ROOT = Path(__file__).resolve().parents[1]
-TIRS = (ROOT / ".." / "shared" / "reference" / "tir").resolve()
-TIR61 = TIRS / "MagicFormula61_Parameters.tir"
-TIR52 = TIRS / "MagicFormula52_Parameters.tir"
-pytestmark = pytest.mark.skipif(not TIR61.is_file(), reason=f"{TIR61} missing")
-
-
-@pytest.fixture(scope="module")
-def model() -> TireModel:
-    return TireModel.from_file(TIR61)
+TIR52 = TIR_DIR / "MagicFormula52_Parameters.tir"
+pytestmark = requires_reference
 
 
 def _random_inputs(n: int, seed: int = 1):
@@ -188,18 +181,15 @@ def test_mf52_file_has_no_pressure_effect() -> None:
 
 
 def test_from_file_equals_constructor(model) -> None:
-    again = TireModel(read_tir(TIR61))
+    again = TireModel(read_tir(MF61_TIR))
     np.testing.assert_array_equal(again.coefficient_vector, model.coefficient_vector)
 
 
 # --- tire-model eval ------------------------------------------------------------------------
 
-CLI = ROOT / ".venv" / "bin" / "tire-model"
-
 
 def _run(*args: str) -> subprocess.CompletedProcess:
-    exe = [str(CLI)] if CLI.exists() else [sys.executable, "-m", "tire_model_ros.cli"]
-    return subprocess.run([*exe, "eval", *args], capture_output=True, text=True, timeout=240)
+    return subprocess.run([*TOOL, "eval", *args], capture_output=True, text=True, timeout=240)
 
 
 def _write_inputs(path: Path, with_T: bool) -> dict[str, np.ndarray]:
@@ -226,7 +216,7 @@ def test_eval_cli_round_trip(model, tmp_path, no_limits) -> None:
     src = tmp_path / "in.csv"
     dst = tmp_path / "out.csv"
     cols = _write_inputs(src, with_T=not no_limits)
-    res = _run("--tir", str(TIR61), str(src), "-o", str(dst), *(["--no-limits"] if no_limits
+    res = _run("--tir", str(MF61_TIR), str(src), "-o", str(dst), *(["--no-limits"] if no_limits
                                                                 else []))  # fmt: skip
     assert res.returncode == 0, res.stderr
     out = _read_csv(dst)
@@ -251,7 +241,7 @@ def test_eval_cli_variants(model, tmp_path) -> None:
     src.write_text("\n".join([lines[0] + ",phit", *rows]) + "\n")
     for flags in (["--turn-slip"], ["--alpha-star"], ["--turn-slip", "--alpha-star"]):
         dst = tmp_path / f"out{len(flags)}{flags[0]}.csv"
-        res = _run("--tir", str(TIR61), str(src), "-o", str(dst), *flags)
+        res = _run("--tir", str(MF61_TIR), str(src), "-o", str(dst), *flags)
         assert res.returncode == 0, res.stderr
         out = _read_csv(dst)
         ref = model.evaluate(cols["Fz"], cols["kappa"], cols["alpha"], cols["gamma"], cols["Vx"],
@@ -266,10 +256,10 @@ def test_eval_cli_refuses_overwrite_and_bad_rows(tmp_path) -> None:
     dst = tmp_path / "out.csv"
     _write_inputs(src, with_T=True)
     dst.write_text("keep me\n")
-    res = _run("--tir", str(TIR61), str(src), "-o", str(dst))
+    res = _run("--tir", str(MF61_TIR), str(src), "-o", str(dst))
     assert res.returncode == 1 and "--force" in res.stderr and str(dst) in res.stderr
     assert dst.read_text() == "keep me\n"
-    res = _run("--tir", str(TIR61), str(src), "-o", str(dst), "--force")
+    res = _run("--tir", str(MF61_TIR), str(src), "-o", str(dst), "--force")
     assert res.returncode == 0, res.stderr
     assert dst.read_text().startswith("Fz,")
 
@@ -279,14 +269,14 @@ def test_eval_cli_refuses_overwrite_and_bad_rows(tmp_path) -> None:
     fields[3] = "zero"  # column alpha (after the note, Fz, kappa)
     lines[3] = ",".join(fields)
     bad.write_text("\n".join(lines) + "\n")
-    res = _run("--tir", str(TIR61), str(bad), "-o", str(tmp_path / "o2.csv"))
+    res = _run("--tir", str(MF61_TIR), str(bad), "-o", str(tmp_path / "o2.csv"))
     assert res.returncode == 1
     assert "bad.csv" in res.stderr and "line 4" in res.stderr and "'alpha'" in res.stderr
     assert not (tmp_path / "o2.csv").exists()
 
     nocol = tmp_path / "nocol.csv"
     nocol.write_text("Fz,kappa,alpha\n1,0,0\n")
-    res = _run("--tir", str(TIR61), str(nocol), "-o", str(tmp_path / "o3.csv"))
+    res = _run("--tir", str(MF61_TIR), str(nocol), "-o", str(tmp_path / "o3.csv"))
     assert res.returncode == 1 and "gamma" in res.stderr and "Vx" in res.stderr
 
 
@@ -295,18 +285,18 @@ def test_eval_cli_writes_finite_rows_or_nothing(tmp_path) -> None:
     ok = "4000,0.05,0.02,0,16,260000\n"
     src = tmp_path / "in.csv"
     src.write_text(head + ok + "4000,nan,0,0,16,260000\n")
-    res = _run("--tir", str(TIR61), str(src), "-o", str(tmp_path / "o1.csv"))
+    res = _run("--tir", str(MF61_TIR), str(src), "-o", str(tmp_path / "o1.csv"))
     assert res.returncode == 1
     assert "in.csv: line 3: column 'kappa': 'nan' is not finite" in res.stderr
     # the plain equations at 1e300 N overflow: refused, naming the CSV line, nothing written
     src.write_text(head + ok + ok + "1e300,0.1,0.1,0,16,260000\n")
-    res = _run("--tir", str(TIR61), str(src), "-o", str(tmp_path / "o2.csv"), "--no-limits")
+    res = _run("--tir", str(MF61_TIR), str(src), "-o", str(tmp_path / "o2.csv"), "--no-limits")
     assert res.returncode == 1 and "Traceback" not in res.stderr
     assert "1 of 3 rows give non-finite outputs" in res.stderr and "line(s) 4;" in res.stderr
     assert not (tmp_path / "o2.csv").exists()
     # with the limits the same rows are saturated, counted, and written
     src.write_text(head + ok + "20000,0.05,1.2,0,16,260000\n" + "1e300,0.1,-1.3,0,0.5,260000\n")
-    res = _run("--tir", str(TIR61), str(src), "-o", str(tmp_path / "o3.csv"))
+    res = _run("--tir", str(MF61_TIR), str(src), "-o", str(tmp_path / "o3.csv"))
     assert res.returncode == 0, res.stderr
     assert "saturated to the file's ranges: Fz on 2 rows, alpha on 2 rows" in res.stdout
     assert "Vx (low-speed model) on 1 row" in res.stdout
@@ -314,12 +304,12 @@ def test_eval_cli_writes_finite_rows_or_nothing(tmp_path) -> None:
     assert all(np.isfinite(out[name]).all() for name in ("Fx", "Fy", "Mx", "My", "Mz"))
     bom = tmp_path / "bom.csv"
     bom.write_bytes(b"\xef\xbb\xbf" + (head + ok).encode())
-    assert _run("--tir", str(TIR61), str(bom), "-o", str(tmp_path / "o4.csv")).returncode == 0
+    assert _run("--tir", str(MF61_TIR), str(bom), "-o", str(tmp_path / "o4.csv")).returncode == 0
     assert "every row written is finite, or nothing is written" in _run("--help").stdout
 
 
 def test_eval_cli_lenient_fills_and_lists(tmp_path) -> None:
-    lines = TIR61.read_text().splitlines(keepends=True)
+    lines = MF61_TIR.read_text().splitlines(keepends=True)
     damaged = tmp_path / "nopdy2.tir"
     damaged.write_text("".join(ln for ln in lines if not ln.startswith("PDY2")))
     src = tmp_path / "in.csv"

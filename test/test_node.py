@@ -19,20 +19,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import DEFAULT_TIR, ROOT, TIR_DIR
 from ros_util import NodeProcess, RosClient, exited_cleanly, node_command, ros_env, wait_for
 
 from tire_model_ros.model import TireModel
-from tire_model_ros.node import params as pn
-from tire_model_ros.node import realtime
-from tire_model_ros.node.wheel import Nominal, WheelState
+from tire_model_ros.ros import realtime
+from tire_model_ros.vocabulary import NODE_INPUTS
+from tire_model_ros.wheel import params as pn
+from tire_model_ros.wheel.state import Nominal, WheelState
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_TIR = ROOT / "config" / "default.tir"
-REF = ROOT.parent / "shared" / "reference" / "tir"
-FSAE_TIR = REF / "FSAE_Defaults.tir"
-BOOK_TIR = REF / "PacejkaBook_Defaults.tir"
+FSAE_TIR = TIR_DIR / "FSAE_Defaults.tir"
+BOOK_TIR = TIR_DIR / "PacejkaBook_Defaults.tir"
 N1 = "/tire1"
 N4 = "/tire_model_node"
 CAR = ("/car/fl", "/car/fr", "/car/rl", "/car/rr")
@@ -71,7 +70,7 @@ def test_wheel_state_fallbacks_and_rejections():
     nom = Nominal.from_params(model.params)
     assert (nom.Fz, nom.p, nom.T, nom.Vx) == (6752.0, 260000.0, 25.0, 16.6)
     w = WheelState("wheel", "wheel")
-    to = dict.fromkeys(pn.INPUTS, 1.0)
+    to = dict.fromkeys(NODE_INPUTS, 1.0)
     out, events = w.compute(0.1, 0.0, 0.0, 0.0, model, nom, to, True)
     assert out[2] == nom.Fz and events and events[0].startswith("fallback.load")
     assert w.set_load(math.nan, 0.0) is not None and w.load.value is None
@@ -94,7 +93,7 @@ def test_cdr_fast_path_agrees_with_rclpy_serialisation():
     from rclpy.serialization import deserialize_message, serialize_message
     from sensor_msgs.msg import FluidPressure
 
-    from tire_model_ros.node import cdr_fast
+    from tire_model_ros.ros import cdr_fast
 
     for n in range(10):  # every frame_id length modulo the 8-byte alignment
         slip = Vector3Stamped()
@@ -253,7 +252,7 @@ def start_node(args, client) -> NodeProcess:
 def node1(client, tir_copy):
     proc = start_node(
         ["-r", "__node:=tire1", "-p", f"tir_file:={DEFAULT_TIR}", "-p", "diagnostics_period:=0.3"]
-        + [a for k in pn.INPUTS for a in ("-p", f"timeout.{k}:=0.0")],
+        + [a for k in NODE_INPUTS for a in ("-p", f"timeout.{k}:=0.0")],
         client,
     )
     wheel = Wheel(client, "/wheel")

@@ -18,11 +18,10 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import MF61_TIR, TOOL
 
 from tire_model_ros.atomic import JOURNAL, OutputSet
 
-ROOT = Path(__file__).resolve().parents[1]
-REF = ROOT.parent / "shared" / "reference" / "tir" / "MagicFormula61_Parameters.tir"
 REPORT = {"r.md": "report\n", "r.json": "{}\n", "p.png": "png\n"}
 
 # Run as: python driver.py ROOT MODE ARG PAYLOAD...; MODE "log" writes ROOT/calls.log, "nth"
@@ -178,7 +177,7 @@ def small_bag(tmp_path_factory) -> Path:
     from tire_model_ros.model import TireModel
     from tire_model_ros.rig import simulate_session, write_session
 
-    model = TireModel.from_file(REF)
+    model = TireModel.from_file(MF61_TIR)
     truth = model.with_params({"PDY1": model.params["PDY1"] * 1.08})
     wheels, info = simulate_session(
         truth, "lateral_sweeps", seed=2, omit=["temperature"], rate_hz=20.0,
@@ -190,14 +189,13 @@ def small_bag(tmp_path_factory) -> Path:
 
 
 def _fit_args(bag: Path) -> list[str]:
-    return ["fit", str(bag), "--tir", str(REF), "-o", "out.tir", "--stages", "Fy0", "--quiet"]
+    return ["fit", str(bag), "--tir", str(MF61_TIR), "-o", "out.tir", "--stages", "Fy0", "--quiet"]
 
 
 def test_fit_killed_while_staging_leaves_nothing_and_the_next_run_proceeds(tmp_path, small_bag):
     tir, report = tmp_path / "out.tir", tmp_path / "out_fit_report"
     staged = tmp_path / ".out.tir.partial" / "items" / "1"
-    exe = Path(sys.executable).parent / "tire-model"
-    proc = subprocess.Popen([str(exe), *_fit_args(small_bag)], cwd=tmp_path,
+    proc = subprocess.Popen([*TOOL, *_fit_args(small_bag)], cwd=tmp_path,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
     deadline = time.monotonic() + 300
     try:  # kill once the report is being staged: some of its files are written

@@ -12,14 +12,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT, TOOL
 from ros_util import exited_cleanly
 from series_util import NS, assert_same, random_wheel
 
-from tire_model_ros.recording.bag import RecordingError, read_raw, read_recording, write_recording
-from tire_model_ros.recording.play import load_schedule, select_topics
-from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.recording import (
+    RecordingError,
+    WheelSeries,
+    read_raw,
+    read_recording,
+    write_recording,
+)
+from tire_model_ros.ros.play import load_schedule, select_topics
+from tire_model_ros.vocabulary import NODE_INPUTS
 
-INPUTS = ("slip", "load", "pressure", "temperature", "velocity")
+INPUTS = ("slip", *NODE_INPUTS)
 
 
 def wheel(prefix: str, n: int, seed: int) -> WheelSeries:
@@ -48,7 +55,7 @@ def test_schedule_order_and_topic_choice(tmp_path):
     for k, stamp in enumerate(w.meta["t_ns"]):
         group = [names[i] for i in np.flatnonzero(sched.stamp_ns == stamp)]
         assert group[-1] == "slip" and group.count("slip") == 1, (k, group)
-        assert set(group[:-1]) <= {"load", "pressure", "temperature", "velocity"}
+        assert set(group[:-1]) <= set(NODE_INPUTS)
         assert {"load", "pressure", "velocity"} <= set(group[:-1])
     # the bytes are the bag's own: the first message decodes to the first stamp
     first = np.frombuffer(sched.raw_of(0), np.uint8)
@@ -57,9 +64,6 @@ def test_schedule_order_and_topic_choice(tmp_path):
 
 
 # ----------------------------------------------------------------------------- ROS
-
-ROOT = Path(__file__).resolve().parent.parent
-TOOL = [str(Path(sys.executable).parent / "tire-model")]
 
 
 @pytest.fixture

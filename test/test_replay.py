@@ -4,25 +4,17 @@ forces, compared with ``tire-model eval`` on the same inputs. Real processes, re
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import ros_util
+from conftest import DEFAULT_TIR, TOOL
 
-from tire_model_ros.recording.bag import decode_topic, read_raw, read_recording, write_recording
+from tire_model_ros.recording import decode_topic, read_raw, read_recording, write_recording
 from tire_model_ros.rig import simulate_session
 
-ROOT = Path(__file__).resolve().parents[1]
-TIR = ROOT / "config" / "default.tir"
 PREFIX = "/rig/wheel"
-
-
-def cli(*args: str) -> list[str]:
-    exe = Path(sys.executable).parent / "tire-model"
-    head = [str(exe)] if exe.exists() else [sys.executable, "-m", "tire_model_ros.cli"]
-    return [*head, *args]
 
 
 def eval_csv(tmp_path: Path, w) -> np.ndarray:
@@ -32,8 +24,8 @@ def eval_csv(tmp_path: Path, w) -> np.ndarray:
     src, out = tmp_path / "in.csv", tmp_path / "out.csv"
     np.savetxt(src, np.column_stack(list(cols.values())), delimiter=",", header=",".join(cols),
                comments="", fmt="%.17g")  # fmt: skip
-    done = subprocess.run(cli("eval", "--tir", str(TIR), str(src), "-o", str(out)),
-                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    cmd = [*TOOL, "eval", "--tir", str(DEFAULT_TIR), str(src), "-o", str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     table = np.genfromtxt(out, delimiter=",", names=True)
     return np.column_stack([table[k] for k in ("Fx", "Fy", "Mx", "My", "Mz")])
@@ -42,22 +34,22 @@ def eval_csv(tmp_path: Path, w) -> np.ndarray:
 @pytest.mark.ros
 @pytest.mark.timeout(240)
 def test_node_on_played_recording_reproduces_eval(tmp_path):
-    wheels, _ = simulate_session(str(TIR), "lateral_sweeps", effects={"heating": True}, seed=4,
-                                 rate_hz=20.0)  # fmt: skip
+    wheels, _ = simulate_session(
+        str(DEFAULT_TIR), "lateral_sweeps", effects={"heating": True}, seed=4, rate_hz=20.0
+    )
     w = wheels[0].select(wheels[0].t < wheels[0].t[0] + 25.0)
     write_recording(tmp_path / "run", [w])
     rec = read_recording(tmp_path / "run")[PREFIX]  # exactly what play will publish
     env = ros_util.ros_env()
-    node = ros_util.NodeProcess([*ros_util.node_command(), "--ros-args", "-p", f"tir_file:={TIR}",
-                                 "-p", f'wheels:=["{PREFIX}"]'], env)  # fmt: skip
-    recorder = ros_util.NodeProcess(cli("record", "-o", str(tmp_path / "forces"), "--wheels",
-                                        PREFIX, "--count", str(len(rec)), "--duration", "150"),
-                                    env)  # fmt: skip
+    node_args = ["--ros-args", "-p", f"tir_file:={DEFAULT_TIR}", "-p", f'wheels:=["{PREFIX}"]']
+    node = ros_util.NodeProcess([*ros_util.node_command(), *node_args], env)
+    record_args = ["-o", str(tmp_path / "forces"), "--wheels", PREFIX, "--count", str(len(rec))]
+    recorder = ros_util.NodeProcess([*TOOL, "record", *record_args, "--duration", "150"], env)
     try:
         ros_util.wait_for(lambda: "wheels" in node.log(), 90, "the node to start")
         ros_util.wait_for(lambda: "recording" in recorder.log(), 60, "the recorder to start")
-        play = subprocess.run(cli("play", str(tmp_path / "run"), "--rate", "4", "--wait", "20"),
-                              env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
+        cmd = [*TOOL, "play", str(tmp_path / "run"), "--rate", "4", "--wait", "20"]
+        play = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
         assert ros_util.exited_cleanly(play.returncode, play.stderr), play.stderr
         recorder.proc.wait(timeout=60)
     finally:

@@ -9,8 +9,8 @@ import pytest
 from tire_model_ros.diagnosis import diagnose
 from tire_model_ros.diagnosis.report import effect_sentence, fmt_param, write_report
 from tire_model_ros.model import TireModel
-from tire_model_ros.node.params import default_tir_path
 from tire_model_ros.rig import simulate_session
+from tire_model_ros.wheel.params import default_tir_path
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MF61_TIR, TIR_DIR
 
 from tire_model_ros.cli import main as cli_main
 from tire_model_ros.model import TireModel
@@ -15,17 +16,8 @@ from tire_model_ros.rig import simulate_session, truth_path
 from tire_model_ros.rig.effects import resolve_effects
 from tire_model_ros.rig.thermal import gas_law_pressure
 
-REF = Path(__file__).resolve().parents[2] / "shared" / "reference" / "tir"
-if not REF.is_dir():
-    REF = Path("/work/shared/reference/tir")
-TIR61 = REF / "MagicFormula61_Parameters.tir"
 DEG = math.pi / 180
 QUIET = {"noise": False}
-
-
-@pytest.fixture(scope="module")
-def model() -> TireModel:
-    return TireModel.from_file(TIR61)
 
 
 def _sim(model, programme, effects=None, rate=50.0, **kw):
@@ -337,13 +329,13 @@ def test_track_four_wheels_with_load_transfer(model):
 
 
 def test_cli_writes_bag_and_truth_beside_it(tmp_path):
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     bag = tmp_path / "run"
     args = [
         "simulate",
         "--tir",
-        str(TIR61),
+        str(MF61_TIR),
         "--programme",
         "camber:rate_scale=2",
         "-o",
@@ -372,7 +364,7 @@ def test_cli_writes_bag_and_truth_beside_it(tmp_path):
     assert s.T is None and s.Vx is None and s.p is not None and len(s) > 500
     # the bag holds what simulate_session returns (same seed -> same content)
     wheels, _ = simulate_session(
-        TIR61,
+        MF61_TIR,
         "camber",
         effects={"heating": {"T_opt_C": 40}, "offset": True},
         omit=["temperature", "velocity"],
@@ -389,7 +381,7 @@ def test_cli_writes_bag_and_truth_beside_it(tmp_path):
             [
                 "simulate",
                 "--tir",
-                str(TIR61),
+                str(MF61_TIR),
                 "--programme",
                 "camber",
                 "-o",
@@ -429,7 +421,7 @@ def test_model_temperature_lets_the_files_terms_act(model):
 
 @pytest.mark.parametrize("name", ["flat_trac_nominal", "flat_trac_heating_hidden", "track_4wheels"])
 def test_sample_bags_read_with_truth_beside(name):
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     bag = Path(__file__).resolve().parents[1] / "bags" / name
     truth = json.loads(truth_path(bag).read_text())
@@ -485,7 +477,7 @@ def test_transient_phase_lag_relaxation_vs_delay(model):
 def test_every_programme_with_every_effect_stays_finite(tir):
     from tire_model_ros.rig import EFFECTS, PROGRAMMES
 
-    m = TireModel.from_file(REF / tir)
+    m = TireModel.from_file(TIR_DIR / tir)
     for prog in PROGRAMMES:
         wheels, truth = simulate_session(
             m, prog, effects=list(EFFECTS), rate_hz=10, programme_options={"laps": 1}

@@ -10,21 +10,18 @@ import math
 
 import numpy as np
 import pytest
+from conftest import DEFAULT_TIR
 
 from tire_model_ros.fit.sweeps import split_segments
 from tire_model_ros.recording.series import WheelSeries
 from tire_model_ros.rig import simulate_session
 
-REF_TIR = "config/default.tir"
 DEG = math.pi / 180.0
 
 
 def _session(programme: str):
-    from pathlib import Path
-
-    tir = Path(__file__).resolve().parents[1] / REF_TIR
     wheels, truth = simulate_session(
-        tir, programme, rate_hz=50.0, programme_options={"rate_scale": 2.0}, seed=3
+        DEFAULT_TIR, programme, rate_hz=50.0, programme_options={"rate_scale": 2.0}, seed=3
     )
     return wheels[0], truth["wheels"]["/rig/wheel"]["segments"]
 

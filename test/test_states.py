@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import DEFAULT_TIR
 
 from tire_model_ros.diagnosis.dynamics import first_order, thermal_state_K
 from tire_model_ros.model import TireModel
@@ -21,7 +21,6 @@ from tire_model_ros.model.states import (
     sidewall_factor,
 )
 
-TIR = Path(__file__).resolve().parents[1] / "config" / "default.tir"
 FULL = WheelEffects(
     T_amb_C=20.0,
     thermal=Node(3.0, 2e-3),
@@ -70,7 +69,7 @@ def test_inputs_and_outputs_follow_the_effects():
     ply-steer shift adds to alpha; friction scales by the similarity method; Fy takes the
     sidewall factor of the sample's deflection; offsets add, their load part in proportion
     to Fz / FNOMIN."""
-    model = TireModel.from_file(TIR)
+    model = TireModel.from_file(DEFAULT_TIR)
     st = EffectState(FULL)
     st.y.update(thermal=15.0, thermal_slow=5.0, gas=8.0)
     st.t_last = 1.0

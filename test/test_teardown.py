@@ -1,4 +1,4 @@
-"""The teardown deadline (tire_model_ros.teardown) ends a process stuck in C code holding the
+"""The teardown deadline (tire_model_ros.ros.teardown) ends a process stuck in C code holding the
 GIL, as Fast DDS can be in teardown, and does nothing to a block that finishes in time."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from ros_util import exited_cleanly
 
 STUCK = """
 import ctypes
-from tire_model_ros.teardown import deadline
+from tire_model_ros.ros.teardown import deadline
 with deadline({seconds}):
     ctypes.PyDLL(None).sleep({block})  # a C call that keeps the GIL, as a DDS deadlock would
 print("after the block")

@@ -7,26 +7,19 @@ Kya: PKY1 term *(1+TTY1 dT), PKY2 term *(1+TTY2 dT); muy *= 1+TTY3 dT+TTY4 dT^2.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import requires_reference
 
 from tire_model_ros.model import TireModel
 
-TIR61 = Path(__file__).resolve().parents[1] / ".." / "shared" / "reference" / "tir"
-TIR61 = (TIR61 / "MagicFormula61_Parameters.tir").resolve()
-pytestmark = pytest.mark.skipif(not TIR61.is_file(), reason=f"{TIR61} missing")
+pytestmark = requires_reference
 
 TT = {"TTX1": 0.3, "TTX2": -0.2, "TTX3": -0.15, "TTX4": 0.05,
       "TTY1": 0.25, "TTY2": -0.4, "TTY3": -0.12, "TTY4": 0.07}  # fmt: skip
 QUANTITIES = ("Fx", "Fy", "Mx", "My", "Mz", "Kxk", "Kya", "mux", "muy", "t", "Mzr", "Re",
               "sigmax", "sigmay")  # fmt: skip
-
-
-@pytest.fixture(scope="module")
-def base() -> TireModel:
-    return TireModel.from_file(TIR61)
 
 
 def _grid():
@@ -43,22 +36,22 @@ def _same(a, b) -> None:
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
 
 
-def test_file_without_temperature_section_has_no_temperature_effect(base) -> None:
-    assert base.params["NOMTEMP"] == 25.0
-    assert all(base.params[k] == 0.0 for k in TT)
+def test_file_without_temperature_section_has_no_temperature_effect(model) -> None:
+    assert model.params["NOMTEMP"] == 25.0
+    assert all(model.params[k] == 0.0 for k in TT)
     Fz, kappa, alpha, gamma, p = _grid()
-    nominal = base.evaluate(Fz, kappa, alpha, gamma, 16.6, p)
+    nominal = model.evaluate(Fz, kappa, alpha, gamma, 16.6, p)
     for T in (-20.0, 25.0, 90.0):
-        _same(base.evaluate(Fz, kappa, alpha, gamma, 16.6, p, T), nominal)
+        _same(model.evaluate(Fz, kappa, alpha, gamma, 16.6, p, T), nominal)
 
 
 @pytest.mark.parametrize("limits", [True, False])
-def test_nominal_temperature_changes_nothing(base, limits) -> None:
-    warm = base.with_params(TT)
+def test_nominal_temperature_changes_nothing(model, limits) -> None:
+    warm = model.with_params(TT)
     Fz, kappa, alpha, gamma, p = _grid()
     _same(
         warm.evaluate(Fz, kappa, alpha, gamma, 16.6, p, 25.0, limits=limits),
-        base.evaluate(Fz, kappa, alpha, gamma, 16.6, p, limits=limits),
+        model.evaluate(Fz, kappa, alpha, gamma, 16.6, p, limits=limits),
     )
     # and T=None means NOMTEMP, also for another NOMTEMP
     hot_ref = warm.with_params({"NOMTEMP": 60.0})
@@ -73,13 +66,13 @@ def _quad(a1: float, a2: float, dT: float) -> float:
 
 
 @pytest.mark.parametrize("T", [-10.0, 5.0, 60.0, 110.0])
-def test_factors_follow_the_interface(base, T) -> None:
-    warm = base.with_params(TT)
+def test_factors_follow_the_interface(model, T) -> None:
+    warm = model.with_params(TT)
     P = warm.params
     dT = (T - P["NOMTEMP"]) / P["NOMTEMP"]
     Fz, kappa, alpha, gamma, p = _grid()
     hot = warm.evaluate(Fz, kappa, alpha, gamma, 16.6, p, T)
-    ref = base.evaluate(Fz, kappa, alpha, gamma, 16.6, p)
+    ref = model.evaluate(Fz, kappa, alpha, gamma, 16.6, p)
     np.testing.assert_allclose(hot.Kxk, ref.Kxk * _quad(TT["TTX1"], TT["TTX2"], dT), rtol=1e-13)
     np.testing.assert_allclose(hot.mux, ref.mux * _quad(TT["TTX3"], TT["TTX4"], dT), rtol=1e-13)
     np.testing.assert_allclose(hot.muy, ref.muy * _quad(TT["TTY3"], TT["TTY4"], dT), rtol=1e-13)
@@ -100,16 +93,16 @@ def test_factors_follow_the_interface(base, T) -> None:
     assert np.max(np.abs(hot.Fy - ref.Fy)) > 1.0
 
 
-def _plain_curves(base: TireModel) -> TireModel:
+def _plain_curves(model: TireModel) -> TireModel:
     """No shifts, so that the peak is D and the slope at zero slip is BCD = stiffness."""
     zero = ("PHX1", "PHX2", "PVX1", "PVX2", "PHY1", "PHY2", "PVY1", "PVY2", "PVY3", "PVY4",
             "PKY6", "PKY7", "RHX1", "RHY1", "RHY2", "RVY1", "RVY2", "RVY3")  # fmt: skip
-    return base.with_params(dict.fromkeys(zero, 0.0))
+    return model.with_params(dict.fromkeys(zero, 0.0))
 
 
 @pytest.mark.parametrize("T", [0.0, 70.0])
-def test_temperature_scales_peak_force_and_slip_stiffness(base, T) -> None:
-    plain = _plain_curves(base)
+def test_temperature_scales_peak_force_and_slip_stiffness(model, T) -> None:
+    plain = _plain_curves(model)
     warm = plain.with_params(TT)
     dT = (T - 25.0) / 25.0
     kappa = np.linspace(0.0, 0.6, 60001)

@@ -9,6 +9,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from conftest import DEFAULT_TIR, MF61_TIR, TIR_DIR
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -28,13 +29,9 @@ from tire_model_ros.model.tir import (
     write_tir,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
-REF_DIR = ROOT.parent / "shared" / "reference" / "tir"
-DEFAULT_TIR = ROOT / "config" / "default.tir"
-REF_FILES = sorted(REF_DIR.glob("*.tir"))
-MF61 = REF_DIR / "MagicFormula61_Parameters.tir"
-UNSTABLE = REF_DIR / "Model_Unstable.tir"
-CITYBUS = REF_DIR / "citybus_tire_CityBus_Pac02Tire.tir"
+REF_FILES = sorted(TIR_DIR.glob("*.tir"))
+UNSTABLE = TIR_DIR / "Model_Unstable.tir"
+CITYBUS = TIR_DIR / "citybus_tire_CityBus_Pac02Tire.tir"
 
 # file -> (fittyp family, FITTYP in file, FNOMIN, PDY1, NOMPRES, format); values from the files
 SPOT = {
@@ -95,7 +92,7 @@ def test_reference_file_loads_with_spot_values(path):
 
 
 def test_mf61_values_and_defaults():
-    tir = read_tir(MF61)
+    tir = read_tir(MF61_TIR)
     P = tir.params
     assert (P["PCX1"], P["PKY1"], P["QSY8"], P["PPZ1"]) == (1.5482, -28.3155, -0.4, 0.94372)
     assert (P["LONGVL"], P["UNLOADED_RADIUS"], P["INFLPRES"]) == (16.6, 0.3943, 260000.0)
@@ -107,7 +104,7 @@ def test_mf61_values_and_defaults():
 
 
 def test_mf52_has_shape_table_and_defaults_for_mf6_terms():
-    tir = read_tir(REF_DIR / "MagicFormula52_Parameters.tir")
+    tir = read_tir(TIR_DIR / "MagicFormula52_Parameters.tir")
     assert tir.params["PHY3"] == 0.006973
     assert tir.params["PPX1"] == 0.0 and "PPX1" not in tir.given
     assert tir.params["INFLPRES"] == tir.params["NOMPRES"]  # INFLPRES defaults to NOMPRES
@@ -153,7 +150,7 @@ def test_pac2002_name_and_mf61_name_disagreeing_is_an_error(tmp_path):
 
 
 def test_unknown_sections_are_kept_in_order():
-    tir = read_tir(REF_DIR / "feda_tires_335_65R22_5_G275MSA_60psi.tir")
+    tir = read_tir(TIR_DIR / "feda_tires_335_65R22_5_G275MSA_60psi.tir")
     names = [(r.name, r.after) for r in tir.raw_sections]
     assert names == [
         ("GOODYEAR", "MDI_HEADER"), ("SHAPE", "DIMENSION"), ("DEFLECTION_LOAD_CURVE", "VERTICAL"),
@@ -176,7 +173,7 @@ def test_default_tir_has_the_temperature_extension():
     assert 0.90 <= mux <= 0.95 and 0.90 <= muy <= 0.95 and kxk < 1.0
     assert "ILLUSTRATIVE" in DEFAULT_TIR.read_text().upper()
     # otherwise the MF 6.1 reference file, unchanged
-    ref = read_tir(MF61).params
+    ref = read_tir(MF61_TIR).params
     assert all(P[k] == v for k, v in ref.items() if k != "NOMTEMP" and not k.startswith("TT"))
 
 
@@ -206,7 +203,7 @@ def test_write_read_round_trip_is_exact(path, tmp_path):
 
 def test_round_trip_of_awkward_floats(tmp_path):
     # the extreme magnitudes go to coefficients no force depends on: the model stays a tyre
-    tir = read_tir(MF61).with_params(
+    tir = read_tir(MF61_TIR).with_params(
         {"PDY1": 0.1 + 0.2, "PKY1": -1e-300, "IXX": 1 / 3, "FNOMIN": 6752.000000000001,
          "PEX1": -0.0, "DAMP_VLOW": 5e-324, "GRAVITY": -1.7976931348623157e308}
     )  # fmt: skip
@@ -219,7 +216,7 @@ def test_round_trip_of_awkward_floats(tmp_path):
 
 
 def test_written_file_is_standard_and_documented(tmp_path):
-    write_tir(read_tir(MF61), tmp_path / "w.tir")
+    write_tir(read_tir(MF61_TIR), tmp_path / "w.tir")
     lines = (tmp_path / "w.tir").read_text().splitlines()
     assert lines[0] == "[MDI_HEADER]"
     sections = [ln.strip("[]") for ln in lines if ln.startswith("[")]
@@ -230,7 +227,7 @@ def test_written_file_is_standard_and_documented(tmp_path):
 
 
 def test_write_refuses_to_overwrite(tmp_path):
-    tir = read_tir(MF61)
+    tir = read_tir(MF61_TIR)
     out = tmp_path / "x.tir"
     out.write_text("precious")
     with pytest.raises(FileExistsError, match=r"x\.tir"):
@@ -243,7 +240,7 @@ def test_write_refuses_to_overwrite(tmp_path):
 
 def test_write_into_missing_directory_fails_cleanly(tmp_path):
     with pytest.raises(OSError):
-        write_tir(read_tir(MF61), tmp_path / "nope" / "x.tir")
+        write_tir(read_tir(MF61_TIR), tmp_path / "nope" / "x.tir")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -253,8 +250,8 @@ def test_write_into_missing_directory_fails_cleanly(tmp_path):
 
 
 def test_crlf_case_comments_and_blank_lines_do_not_change_the_result(tmp_path):
-    ref = read_tir(MF61)
-    lines = MF61.read_text().splitlines()
+    ref = read_tir(MF61_TIR)
+    lines = MF61_TIR.read_text().splitlines()
     out = []
     for i, line in enumerate(lines):
         if "=" in line and i % 2:
@@ -270,20 +267,20 @@ def test_crlf_case_comments_and_blank_lines_do_not_change_the_result(tmp_path):
 
 
 def test_mixed_line_endings_and_bom(tmp_path):
-    raw = MF61.read_bytes().replace(b"\n", b"\r", 40)
+    raw = MF61_TIR.read_bytes().replace(b"\n", b"\r", 40)
     path = tmp_path / "mixed.tir"
     path.write_bytes(b"\xef\xbb\xbf" + raw)
-    assert read_tir(path).params == read_tir(MF61).params
+    assert read_tir(path).params == read_tir(MF61_TIR).params
 
 
 def test_quoted_strings_may_hold_comment_characters(tmp_path):
-    text = MF61.read_text().replace("'RIGHT'", "'RI$GHT !x'   $ side")
+    text = MF61_TIR.read_text().replace("'RIGHT'", "'RI$GHT !x'   $ side")
     (tmp_path / "q.tir").write_text(text)
     assert read_tir(tmp_path / "q.tir").strings["TYRESIDE"] == "RI$GHT !x"
 
 
 def test_same_value_twice_is_accepted(tmp_path):
-    text = MF61.read_text().replace("PDY2 ", "PDY1 = 1.0085e0\nPDY2 ")
+    text = MF61_TIR.read_text().replace("PDY2 ", "PDY1 = 1.0085e0\nPDY2 ")
     (tmp_path / "d.tir").write_text(text)
     assert read_tir(tmp_path / "d.tir").params["PDY1"] == 1.0085
 
@@ -294,7 +291,7 @@ def test_same_value_twice_is_accepted(tmp_path):
 
 
 def _mangled(tmp_path, name, edit) -> Path:
-    lines = MF61.read_text().splitlines()
+    lines = MF61_TIR.read_text().splitlines()
     lines = edit(lines)
     path = tmp_path / name
     path.write_text("\n".join(lines) + "\n")
@@ -313,7 +310,7 @@ def _replace(prefix, new):
     return edit
 
 
-REF_LINES = MF61.read_text().splitlines()
+REF_LINES = MF61_TIR.read_text().splitlines()
 L = {p: _line_of(REF_LINES, p) for p in ("FNOMIN", "PDY1", "FITTYP", "LENGTH", "[VERTICAL]")}
 
 ERROR_CASES = [
@@ -427,7 +424,7 @@ def test_malformed_file_error_names_file_line_key(tmp_path, name, edit, line, ke
 
 
 def test_file_cut_short_is_refused_and_lenient_fills_and_lists(tmp_path):
-    data = MF61.read_bytes()
+    data = MF61_TIR.read_bytes()
     at = data.index(b"PDY1 ") + len(b"PDY1                     =    1.0")  # inside 1.0085
     path = tmp_path / "cut.tir"
     path.write_bytes(data[:at])
@@ -461,7 +458,7 @@ def test_lenient_keeps_unknown_sections_and_fills_what_they_hid(tmp_path):
     assert tir.filled >= {"PCY1", "PDY1", "PKY1"} and tir.params["PDY1"] == 1.1  # defaults
     assert [r.name for r in tir.raw_sections] == ["LATERAL_COEFICIENTS"]
     assert any("kept verbatim, not read" in n for n in tir.notes)
-    assert read_tir(MF61, lenient=True).notes == ()  # a whole file: nothing to say
+    assert read_tir(MF61_TIR, lenient=True).notes == ()  # a whole file: nothing to say
 
 
 def test_required_keys_and_bad_values_are_refused_even_when_lenient(tmp_path):
@@ -490,7 +487,7 @@ def test_check_model_names_the_coefficient():
     from tire_model_ros.model import TireModel
     from tire_model_ros.model.check import check_model
 
-    model = TireModel(read_tir(MF61))
+    model = TireModel(read_tir(MF61_TIR))
     assert check_model(model) is None
     fault = check_model(model.with_params({"QSX1": 1e308}))
     assert fault is not None and fault.output == "Mx" and fault.causes == ("QSX1",)
@@ -501,7 +498,7 @@ def test_check_model_names_the_coefficient():
 
 
 def test_nompres_needed_when_a_pressure_term_is_set_in_mf52(tmp_path):
-    src = (REF_DIR / "MagicFormula52_Parameters.tir").read_text()
+    src = (TIR_DIR / "MagicFormula52_Parameters.tir").read_text()
     path = tmp_path / "p52.tir"
     path.write_text(src.replace("PDX1 ", "PPX3 = 0.2\nPDX1 "))
     with pytest.raises(TirError, match=r"p52\.tir: line \d+: NOMPRES: required because PPX3"):
@@ -511,7 +508,7 @@ def test_nompres_needed_when_a_pressure_term_is_set_in_mf52(tmp_path):
 def test_missing_file_and_not_utf8(tmp_path):
     with pytest.raises(TirError, match=r"absent\.tir: file not found"):
         read_tir(tmp_path / "absent.tir")
-    data = MF61.read_bytes().splitlines(keepends=True)
+    data = MF61_TIR.read_bytes().splitlines(keepends=True)
     data[29] = b"$ caf\xe9 comment\n"
     (tmp_path / "latin1.tir").write_bytes(b"".join(data))
     with pytest.raises(TirError, match=r"latin1\.tir: line 30: not UTF-8"):
@@ -529,7 +526,7 @@ def test_missing_file_and_not_utf8(tmp_path):
 
 
 def test_with_params_copies_and_validates():
-    tir = read_tir(MF61)
+    tir = read_tir(MF61_TIR)
     new = tir.with_params({"pdy1": 1.2, "QPZ1": 0.5, "TTY3": -0.1})
     assert (new.params["PDY1"], new.params["PPZ1"], new.params["TTY3"]) == (1.2, 0.5, -0.1)
     assert tir.params["PDY1"] == 1.0085 and tir.params["TTY3"] == 0.0  # original untouched
@@ -546,7 +543,7 @@ def test_nominal_operating_point():
     op = nominal_operating_point(read_tir(DEFAULT_TIR))
     assert (op.Fz, op.Vx, op.p, op.T) == (6752.0, 16.6, 260000.0, 25.0)
     assert (op.kappa, op.alpha, op.gamma) == (0.0, 0.0, 0.0)
-    assert read_tir(MF61).nominal() == op
+    assert read_tir(MF61_TIR).nominal() == op
 
 
 def test_parameter_table_is_consistent():
@@ -653,7 +650,7 @@ def test_mangled_files_give_tirdata_or_tirerror(source, ops):
 
 def test_params_holding_fittyp_are_written_once(tmp_path):
     # e.g. TirData rebuilt from TireModel.params, which carries FITTYP as a number
-    tir = read_tir(MF61)
+    tir = read_tir(MF61_TIR)
     with_fittyp = TirData(tir.path, tir.fittyp, {**tir.params, "FITTYP": 61.0}, tir.strings)
     write_tir(with_fittyp, tmp_path / "f.tir")
     text = (tmp_path / "f.tir").read_text()
@@ -672,7 +669,7 @@ def test_describe_gives_units():
 
 
 def test_writer_refuses_content_that_would_not_read_back(tmp_path):
-    tir = read_tir(MF61)
+    tir = read_tir(MF61_TIR)
     for bad in (
         TirData(None, 61, {**tir.params, "PDY1": math.inf}),
         TirData(None, 61, {**tir.params, "BAD KEY": 1.0}),
@@ -685,7 +682,7 @@ def test_writer_refuses_content_that_would_not_read_back(tmp_path):
 
 
 def test_unknown_keys_are_kept_whatever_they_hold(tmp_path):
-    text = MF61.read_text().replace("PDY2 ", "MY_FLAG = YES ! vendor\nMY_GAIN = 2.5\nPDY2 ")
+    text = MF61_TIR.read_text().replace("PDY2 ", "MY_FLAG = YES ! vendor\nMY_GAIN = 2.5\nPDY2 ")
     (tmp_path / "u.tir").write_text(text)
     tir = read_tir(tmp_path / "u.tir")
     assert tir.strings["MY_FLAG"] == "YES" and tir.params["MY_GAIN"] == 2.5

@@ -19,14 +19,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from conftest import DEFAULT_TIR, TIR_DIR
 
 from tire_model_ros.cli import main
 from tire_model_ros.model import TireModel, TirError, read_tir
 from tire_model_ros.model.check import check_model
 
-ROOT = Path(__file__).resolve().parents[1]
-SOURCES = [*sorted((ROOT.parent / "shared" / "reference" / "tir").glob("*.tir")),
-           ROOT / "config" / "default.tir"]  # fmt: skip
+SOURCES = [*sorted(TIR_DIR.glob("*.tir")), DEFAULT_TIR]
 SEED = 20261202
 N_MUTANTS = 300
 _ASSIGN = re.compile(rb"^(\s*[A-Za-z_][A-Za-z0-9_]*\s*=\s*)([^$!\r\n]*?)(\s*(?:[$!].*)?)$")

@@ -2,13 +2,16 @@
 
 Layout (data flows one way: recording -> aligned arrays -> model/fit/diagnosis -> report/.tir):
 
-- ``model``      pure numpy/numba Magic Formula and .tir I/O, no ROS import
-- ``recording``  rosbag2 read/write, alignment on slip stamps, play and record
+- ``model``      pure numpy/numba Magic Formula and .tir I/O
+- ``recording``  rosbag2 read, the alignment rule on slip stamps (``align``), write
 - ``rig``        the virtual test rig (its own physics, not the fitted forms)
 - ``fit``        staged bounded least-squares refit of .tir coefficients
 - ``diagnosis``  locate, name and model what a fit leaves out
-- ``node``       the ROS 2 node (glue only)
+- ``wheel``      the node's per-wheel logic and parameter table, without ROS
 - ``cli``        the ``tire-model`` command and its subcommands
+- ``vocabulary`` the shared words of INTERFACE.md: topics, message types, channels, effects
+- ``ros``        everything that needs ROS 2 (rclpy): the node, play, record; nothing outside
+  this folder imports ROS, so the offline tool runs from a plain ``pip install``
 """
 
 import os

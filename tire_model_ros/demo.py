@@ -28,8 +28,17 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from tire_model_ros.diagnosis import Diagnosis
+    from tire_model_ros.model import TireModel
+    from tire_model_ros.model.states import Effects, WheelEffects
+    from tire_model_ros.recording import WheelSeries
+
+Wheels = dict[str, "WheelSeries"]
 
 PROGRAMME = "flat_trac"
 SEED = 7
@@ -57,8 +66,8 @@ def tool(name: str) -> list[str]:
     exe = Path(sys.executable).with_name(name)
     if exe.is_file():
         return [str(exe)]
-    module = {"tire-model": "tire_model_ros.cli", "tire-model-node": "tire_model_ros.node"}[name]
-    return [sys.executable, "-m", module]
+    modules = {"tire-model": "tire_model_ros.cli", "tire-model-node": "tire_model_ros.ros.node"}
+    return [sys.executable, "-m", modules[name]]
 
 
 def _short(text: str, limit: int = 160) -> str:
@@ -71,7 +80,7 @@ def _short(text: str, limit: int = 160) -> str:
 
 
 def default_tir() -> Path:
-    from tire_model_ros.node.params import default_tir_path
+    from tire_model_ros.wheel.params import default_tir_path
 
     path = default_tir_path()
     if not path:
@@ -89,7 +98,7 @@ def out_dir(arg: Path | None) -> Path:
     return arg
 
 
-def run(cmd: list[str], step: str, timeout: float, env: dict | None = None) -> str:
+def run(cmd: list[str], step: str, timeout: float, env: dict[str, str] | None = None) -> str:
     """Run a command, echo it, fail with its stderr."""
     say(step, "$ " + " ".join(cmd))
     proc = subprocess.run(
@@ -131,7 +140,7 @@ def step_record(tir: Path, out: Path) -> Path:
     if truth.is_file():  # keep the truth out of the diagnosis' sight, for the end of the story
         hidden.parent.mkdir(exist_ok=True)
         os.replace(truth, hidden)
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     wheels = read_recording(bag)
     for prefix, w in wheels.items():
@@ -148,11 +157,11 @@ def step_record(tir: Path, out: Path) -> Path:
     return bag
 
 
-def step_diagnose(bag: Path, tir: Path, out: Path):
+def step_diagnose(bag: Path, tir: Path, out: Path) -> tuple[Wheels, Diagnosis, Path]:
     say("2 diagnose the session against the default .tir")
     from tire_model_ros.diagnosis import diagnose
     from tire_model_ros.model import TireModel, write_tir
-    from tire_model_ros.recording.bag import read_recording
+    from tire_model_ros.recording import read_recording
 
     wheels = read_recording(bag)
     say(
@@ -205,12 +214,12 @@ def step_diagnose(bag: Path, tir: Path, out: Path):
     return wheels, diag, improved
 
 
-def _carried(effects) -> list[str]:
+def _carried(effects: Effects) -> list[str]:
     wheel = next(iter(effects.wheels.values()))
     return [k for k, v in wheel.to_dict().items() if k != "T_amb_C" and v]
 
 
-def step_report(diag, wheels, out: Path) -> None:
+def step_report(diag: Diagnosis, wheels: Wheels, out: Path) -> None:
     say("3 write the report")
     from tire_model_ros.diagnosis.report import write_report
 
@@ -219,9 +228,9 @@ def step_report(diag, wheels, out: Path) -> None:
     say("3", f"{path} with {len(pngs)} plots: {', '.join(pngs)}")
 
 
-def replay_bag(wheels: dict, out: Path) -> tuple[Path, dict]:
+def replay_bag(wheels: Wheels, out: Path) -> tuple[Path, Wheels]:
     """The session as recorded (no temperature), every REPLAY_EVERY-th sample."""
-    from tire_model_ros.recording.bag import write_recording
+    from tire_model_ros.recording import write_recording
 
     parts = {}
     for prefix, w in wheels.items():
@@ -243,7 +252,7 @@ def ros_env() -> dict[str, str]:
     return env
 
 
-def _stop(proc: subprocess.Popen, timeout: float = 20.0) -> None:
+def _stop(proc: subprocess.Popen[bytes], timeout: float = 20.0) -> None:
     """SIGINT (clean shutdown, a recorder closes its bag), then SIGKILL if it hangs (after
     the teardown deadline, so a Fast DDS hang leaves its stacks in the log)."""
     if proc.poll() is None:
@@ -255,7 +264,7 @@ def _stop(proc: subprocess.Popen, timeout: float = 20.0) -> None:
             proc.wait()
 
 
-def step_node(wheels: dict, diag, tir: Path, improved: Path, out: Path) -> bool:
+def step_node(wheels: Wheels, diag: Diagnosis, tir: Path, improved: Path, out: Path) -> bool:
     say("4 run the node with the improved .tir and its effects file on the recording")
     from tire_model_ros.cli.diagnose_cmd import effects_path
 
@@ -296,7 +305,7 @@ def step_node(wheels: dict, diag, tir: Path, improved: Path, out: Path) -> bool:
         str(span / REPLAY_RATE + 60),
     ]
     play_cmd = [*tool("tire-model"), "play", str(bag), "--rate", str(REPLAY_RATE), "--wait", "10"]
-    procs: list[subprocess.Popen] = []
+    procs: list[subprocess.Popen[bytes]] = []
     handles = []
     try:
         for name, cmd in (("node", node_cmd), ("record", rec_cmd)):
@@ -326,16 +335,20 @@ def step_node(wheels: dict, diag, tir: Path, improved: Path, out: Path) -> bool:
     return compare(forces_bag, parts, improved, tir, diag)
 
 
-def offline(model, effects, w) -> np.ndarray:
+def offline(model: TireModel, effects: WheelEffects | None, w: WheelSeries) -> np.ndarray:
     """The node's computation for every sample of ``w``, offline: the improved model with the
-    effects' hidden states stepped on the same stamps (rows Fx, Fy, Fz, Mx, My, Mz)."""
+    effects' hidden states stepped on the same stamps (rows Fx, Fy, Fz, Mx, My, Mz); the plain
+    model where the effects file has nothing for this wheel."""
     from tire_model_ros.model.states import EffectState
-    from tire_model_ros.node.wheel import Nominal
+    from tire_model_ros.wheel.state import Nominal
 
     nom = Nominal.from_params(model.params)
-    st = EffectState(effects)
     Vx = w.Vx if w.Vx is not None else np.full(len(w), nom.Vx)
-    p = w.p if w.p is not None else [None] * len(w)
+    p = w.p
+    if effects is None:
+        out = model.evaluate(w.Fz, w.kappa, w.alpha, w.gamma, Vx, p, None, full=False)
+        return np.column_stack([out.Fx, out.Fy, out.Fz, out.Mx, out.My, out.Mz])
+    st = EffectState(effects)
     rows = np.empty((len(w), 6))
     for i in range(len(w)):
         rows[i] = st.evaluate(
@@ -347,7 +360,7 @@ def offline(model, effects, w) -> np.ndarray:
             float(w.gamma[i]),
             float(Vx[i]),
             None,
-            None if p[i] is None else float(p[i]),
+            None if p is None else float(p[i]),
             nom.p,
             nom.T,
             nom.Fz,
@@ -355,9 +368,9 @@ def offline(model, effects, w) -> np.ndarray:
     return rows
 
 
-def _node_forces(forces_bag: Path, prefix: str, w) -> tuple[np.ndarray, np.ndarray]:
+def _node_forces(forces_bag: Path, prefix: str, w: WheelSeries) -> tuple[np.ndarray, np.ndarray]:
     """(sample index into ``w``, node wrench rows) for every force message matched by stamp."""
-    from tire_model_ros.recording.bag import decode_topic, read_raw
+    from tire_model_ros.recording import decode_topic, read_raw
 
     raw = read_raw(forces_bag)
     topic = f"{prefix}/forces"
@@ -376,7 +389,7 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean((a - b) ** 2)))
 
 
-def compare(forces_bag: Path, parts: dict, improved: Path, tir: Path, diag) -> bool:
+def compare(forces_bag: Path, parts: Wheels, improved: Path, tir: Path, diag: Diagnosis) -> bool:
     """Node forces against the improved model run offline, and against the measurement."""
     from tire_model_ros.cli.diagnose_cmd import effects_path
     from tire_model_ros.model import TireModel
@@ -440,7 +453,7 @@ def compare(forces_bag: Path, parts: dict, improved: Path, tir: Path, diag) -> b
     return ok
 
 
-def step_truth(out: Path, wheels: dict, diag) -> None:
+def step_truth(out: Path, wheels: Wheels, diag: Diagnosis) -> None:
     say("5 compare with the rig's truth (hidden from the diagnosis until now)")
     files = sorted((out / "truth").glob("*.truth.json"))
     if not files:

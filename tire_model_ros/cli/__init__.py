@@ -13,6 +13,8 @@ import argparse
 import importlib
 import sys
 
+from tire_model_ros.ros import RosUnavailableError
+
 COMMANDS: dict[str, tuple[str, str]] = {
     "eval": ("tire_model_ros.cli.eval_cmd", "evaluate the model on a CSV of inputs"),
     "info": ("tire_model_ros.cli.info_cmd", "wheels, topics, duration and ranges of a recording"),
@@ -48,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
         return int(module.run(args) or 0)
     except KeyboardInterrupt:
         return 130
-    except (OSError, ValueError) as exc:  # documented user-facing errors carry their context
+    except (OSError, ValueError, RosUnavailableError) as exc:  # user-facing, with their context
         print(f"tire-model {argv[0]}: error: {exc}", file=sys.stderr)
         return 1
 

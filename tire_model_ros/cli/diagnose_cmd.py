@@ -2,20 +2,26 @@
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import os
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from tire_model_ros.atomic import write_atomic
 from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
 
+if TYPE_CHECKING:
+    from tire_model_ros.diagnosis import Diagnosis, WheelDiagnosis
+    from tire_model_ros.model.tir import TirData
+
 HELP = "locate, name and model a model/recording mismatch"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "bag",
         help="recording: rosbag2 folder, .mcap or .db3 file, or a measurement file imported "
@@ -51,24 +57,26 @@ def add_arguments(parser) -> None:
     add_lenient_argument(parser)
 
 
-def _check_free(path: str | None, force: bool) -> None:
+def _check_free(path: str | os.PathLike[str] | None, force: bool) -> None:
     if path and Path(path).exists() and not force:
         raise FileExistsError(f"{path}: exists; not overwriting it (use --force)")
 
 
-def write_json_atomic(obj: dict, path: str | os.PathLike, overwrite: bool = False) -> None:
+def write_json_atomic(
+    obj: dict[str, Any], path: str | os.PathLike[str], overwrite: bool = False
+) -> None:
     """Write ``obj`` as JSON (no NaN: INTERFACE.md JSON is strict), atomically."""
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, json.dumps(obj, indent=2, allow_nan=False) + "\n", overwrite=overwrite)
 
 
-def effects_path(tir_path: str | os.PathLike) -> Path:
+def effects_path(tir_path: str | os.PathLike[str]) -> Path:
     """The effects file written beside an improved .tir: ``improved.tir`` ->
     ``improved.effects.json``."""
     return Path(tir_path).with_suffix(".effects.json")
 
 
-def improved_tir(wd, source_tir):
+def improved_tir(wd: WheelDiagnosis, source_tir: TirData) -> TirData:
     """TirData of one wheel's improved model: fitted coefficients, effect parameters as
     comments."""
     notes = [f"! tire-model diagnose: improved model of {wd.prefix} (fitted coefficients below)."]
@@ -85,7 +93,7 @@ def improved_tir(wd, source_tir):
     )
 
 
-def tir_paths(diag, out_tir: str | os.PathLike) -> dict[str, Path]:
+def tir_paths(diag: Diagnosis, out_tir: str | os.PathLike[str]) -> dict[str, Path]:
     """Where each wheel's improved .tir goes: OUT itself for one wheel; for several,
     ``OUT.<wheel>.tir`` each (``improved.tir`` -> ``improved.car_fl.tir``)."""
     out = Path(out_tir)
@@ -98,7 +106,7 @@ def _slug(prefix: str) -> str:
     return prefix.strip("/").replace("/", "_") or "wheel"
 
 
-def node_params(diag, tirs: dict[str, Path], effects: Path) -> str:
+def node_params(diag: Diagnosis, tirs: dict[str, Path], effects: Path) -> str:
     """A node parameter file that runs the improved model of every wheel (several wheels)."""
     lines = ["tire_model_node:", "  ros__parameters:", f"    wheels: {list(diag.wheels)}"]
     lines += [
@@ -111,7 +119,7 @@ def node_params(diag, tirs: dict[str, Path], effects: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from tire_model_ros.diagnosis import diagnose
     from tire_model_ros.model import write_tir
     from tire_model_ros.recording import open_recording
@@ -179,13 +187,14 @@ def run(args) -> int:
             write_tir(improved_tir(diag.wheels[prefix], model.tir), path, overwrite=again)
             print(f"wrote {path}")
         effects = diag.node_effects(Path(out_tir).name)
-        write_atomic(out_effects, effects.to_json(), overwrite=again)
+        effects_file = effects_path(out_tir)
+        write_atomic(effects_file, effects.to_json(), overwrite=again)
         if len(tirs) > 1:
             yaml_path = Path(out_tir).with_suffix(".node.yaml")
-            write_atomic(yaml_path, node_params(diag, tirs, out_effects), overwrite=again)
+            write_atomic(yaml_path, node_params(diag, tirs, effects_file), overwrite=again)
             print(f"wrote {yaml_path} (tire-model-node --ros-args --params-file {yaml_path})")
         print(
-            f"wrote {out_effects} (hidden states for the node's effects_file"
+            f"wrote {effects_file} (hidden states for the node's effects_file"
             + (f"; not carried: {'; '.join(effects.not_carried)})" if effects.not_carried else ")")
         )
     sys.stdout.flush()

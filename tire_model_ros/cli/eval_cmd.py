@@ -21,13 +21,13 @@ import numpy.typing as npt
 
 from tire_model_ros.atomic import write_atomic
 from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
+from tire_model_ros.vocabulary import FORCE_CHANNELS
 
 Array = npt.NDArray[np.float64]
 
 HELP = "evaluate the model on a CSV of inputs"
 REQUIRED = ("Fz", "kappa", "alpha", "gamma", "Vx", "p")
 OPTIONAL = ("phit", "T")
-OUTPUTS = ("Fx", "Fy", "Mx", "My", "Mz")
 SHOWN_ROWS = 5  # CSV lines named in a refusal
 RULE = """\
 every row written is finite, or nothing is written:
@@ -186,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
         turn_slip=args.turn_slip,
         alpha_star=args.alpha_star,
     )
-    outputs: dict[str, Array] = {name: getattr(out, name) for name in OUTPUTS}
+    outputs: dict[str, Array] = {name: getattr(out, name) for name in FORCE_CHANNELS}
     bad = non_finite_rows(outputs)
     if bad.any():
         raise ValueError(_refusal(source, bad, lines, outputs))

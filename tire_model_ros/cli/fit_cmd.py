@@ -132,8 +132,8 @@ def run(args: argparse.Namespace) -> int:
         options.progress = True  # one line per stage; the live counter only on a TTY
     result = fit_recording(wheels, start, options)
     fitted = [st["stage"] for st in result.report["stages"] if st["status"] == "fitted"]
-    note = result.report.get("note")
-    if not fitted and not note:
+    fit_note: str | None = result.report.get("note")
+    if not fitted and not fit_note:
         reasons = "; ".join(
             f"{st['stage']}: {st.get('reason', st['status'])}" for st in result.report["stages"]
         )
@@ -142,11 +142,11 @@ def run(args: argparse.Namespace) -> int:
     if fault is not None:
         raise ValueError(f"the fitted model is not a tyre on its range: {fault}; nothing written")
     tir = result.model.tir
-    if note:  # the start model explains the data: it is the result, said in the file
+    if fit_note:  # the start model explains the data: it is the result, said in the file
         tir = dataclasses.replace(
-            tir, path=None, preamble=(*tir.preamble, f"! tire-model fit: {note}")
+            tir, path=None, preamble=(*tir.preamble, f"! tire-model fit: {fit_note}")
         )
-        print(f"note: {note}")
+        print(f"note: {fit_note}")
     report_dir.parent.mkdir(parents=True, exist_ok=True)
     with outputs:
         write_tir(tir, outputs.path(out))

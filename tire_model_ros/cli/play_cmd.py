@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 import signal
+from types import FrameType
+
+from tire_model_ros.ros import require_ros
 
 HELP = "publish a recording's input topics with their timing"
 
@@ -40,13 +43,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tire_model_ros.recording.play import play
+    require_ros("tire-model play")
+    from tire_model_ros.ros.play import play
 
     if args.queue < 1:
         raise ValueError(f"--queue must be >= 1, got {args.queue}")
     stop = {"flag": False}
 
-    def on_signal(signum, _frame) -> None:
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
         stop["flag"] = True
 
     for s in (signal.SIGINT, signal.SIGTERM):

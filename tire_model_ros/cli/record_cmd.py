@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from tire_model_ros.ros import require_ros
+
 HELP = "record the node's force topics to a new bag"
 
 
@@ -32,7 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tire_model_ros.recording.record import record, resolve_topics
+    require_ros("tire-model record")
+    from tire_model_ros.ros.record import record, resolve_topics
 
     topics = resolve_topics(args.topics, args.wheels)
     counts = record(

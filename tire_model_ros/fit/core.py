@@ -16,18 +16,19 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.vocabulary import FORCE_CHANNELS, MODEL_INPUTS
 
 from .sweeps import noise_sigma
 
-INPUTS = ("Fz", "kappa", "alpha", "gamma", "Vx", "p", "T")
-OPTIONAL_INPUTS = ("Vx", "p", "T")
-CHANNELS = ("Fx", "Fy", "Mx", "My", "Mz")
+if TYPE_CHECKING:
+    from tire_model_ros.model import MFOutput, TireModel
 
 # Coefficients that scale a peak, a stiffness or a shape factor: their sign must not change
 # (C > 0, D > 0 and the stiffness sign of the file), so the bounds keep them on their side.
@@ -97,7 +98,7 @@ def _as_list(value: Any, lengths: Sequence[int], what: str) -> list[np.ndarray]:
     return list(np.split(arr, np.cumsum(lengths)[:-1]))
 
 
-def nominal_inputs(model) -> dict[str, float]:
+def nominal_inputs(model: TireModel) -> dict[str, float]:
     """Values the node uses when an optional input never arrives."""
     P = model.params
     p_nom = P.get("INFLPRES", 0.0) or P.get("NOMPRES", 0.0)
@@ -109,7 +110,7 @@ def nominal_inputs(model) -> dict[str, float]:
 
 
 def stack_inputs(
-    model,
+    model: TireModel,
     series_list: Sequence[WheelSeries],
     channels: Sequence[str],
     extra_inputs: Mapping[str, Any] | None = None,
@@ -124,7 +125,7 @@ def stack_inputs(
     lengths = [len(s) for s in series_list]
     nominal = nominal_inputs(model)
     inputs: dict[str, np.ndarray | None] = {}
-    for k in INPUTS:
+    for k in MODEL_INPUTS:
         arrays = [getattr(s, k) for s in series_list]
         if all(a is None for a in arrays):
             inputs[k] = None
@@ -141,8 +142,8 @@ def stack_inputs(
         inputs[k] = np.concatenate(_as_list(v, lengths, f"extra input {k}"))
     measured = {}
     for c in channels:
-        if c not in CHANNELS:
-            raise ValueError(f"unknown channel {c!r}; expected one of {', '.join(CHANNELS)}")
+        if c not in FORCE_CHANNELS:
+            raise ValueError(f"unknown channel {c!r}; expected one of {', '.join(FORCE_CHANNELS)}")
         measured[c] = np.concatenate(
             [
                 np.asarray(getattr(s, c), dtype=np.float64)
@@ -159,21 +160,22 @@ def stack_inputs(
     return inputs, measured, valid
 
 
-def evaluate_on(model, inputs: Mapping[str, np.ndarray | None], limits: bool = True):
+def evaluate_on(
+    model: TireModel, inputs: Mapping[str, np.ndarray | None], limits: bool = True
+) -> MFOutput:
     """Evaluate ``model`` on stacked inputs (batch path): an MFOutput."""
-    kw = dict(inputs)
-    args = [kw.pop(k) for k in ("Fz", "kappa", "alpha")]
+    kw: dict[str, Any] = dict(inputs)
+    Fz, kappa, alpha = (kw.pop(k) for k in ("Fz", "kappa", "alpha"))
     g = kw.pop("gamma", None)
     gamma = 0.0 if g is None else g
-    try:  # forces and moments only: the batch path skips radii and relaxation lengths
-        return model.evaluate(*args, gamma, limits=limits, full=False, **kw)
-    except TypeError:
-        return model.evaluate(*args, gamma, limits=limits, **kw)
+    # forces and moments only: the batch path skips radii and relaxation lengths
+    return model.evaluate(Fz, kappa, alpha, gamma, limits=limits, full=False, **kw)
 
 
 def _channel_sigma(series_list: Sequence[WheelSeries], channel: str) -> float:
     """Noise level of a measured channel, pooled over the series, with a floor."""
-    sig, rng = [], []
+    sig: list[float] = []
+    rng: list[float] = []
     for s in series_list:
         y = getattr(s, channel)
         if y is None:
@@ -184,7 +186,7 @@ def _channel_sigma(series_list: Sequence[WheelSeries], channel: str) -> float:
             continue
         sig.append(noise_sigma(y))
         q = np.percentile(finite, [1.0, 99.0])
-        rng.append(q[1] - q[0])
+        rng.append(float(q[1] - q[0]))
     if not sig:
         return 1.0
     floor = max(1e-3 * max(rng), 1e-6)  # noise-free data: 0.1 % of the range
@@ -254,11 +256,12 @@ def _standard_errors(jac: np.ndarray, cost: float, m: int, n: int) -> np.ndarray
         cov = np.linalg.pinv(jtj, rcond=1e-12)
     except np.linalg.LinAlgError:
         return np.full(n, np.inf)
-    return np.sqrt(np.clip(np.diag(cov), 0.0, None) * s2)
+    stderr: npt.NDArray[np.float64] = np.sqrt(np.clip(np.diag(cov), 0.0, None) * s2)
+    return stderr
 
 
 def fit_coefficients(
-    model,
+    model: TireModel,
     series_list: Sequence[WheelSeries],
     names: Sequence[str],
     channels: Sequence[str] = ("Fx", "Fy"),
@@ -273,7 +276,7 @@ def fit_coefficients(
     limits: bool = True,
     min_samples: int | None = None,
     progress: Callable[[int, float], None] | None = None,
-) -> tuple[Any, dict]:
+) -> tuple[TireModel, dict[str, Any]]:
     """Fit the coefficients ``names`` of ``model`` to the measured ``channels``.
 
     Parameters
@@ -362,7 +365,7 @@ def fit_coefficients(
     x_start = np.clip(x0, lo + 1e-9 * xs, hi - 1e-9 * xs) if names else x0
     nfev = [0]
 
-    def predict(x: np.ndarray):
+    def predict(x: np.ndarray) -> MFOutput:
         mod = model.with_params(dict(zip(names, map(float, x), strict=True))) if names else model
         return evaluate_on(mod, sub, limits=limits)
 

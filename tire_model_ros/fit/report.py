@@ -24,14 +24,14 @@ import numpy as np
 import numpy.typing as npt
 
 from ..atomic import write_atomic
-from ..recording.series import WheelSeries
-from .core import CHANNELS, evaluate_on, stack_inputs
+from ..vocabulary import FORCE_CHANNELS, SERIES_UNITS
+from .core import evaluate_on, stack_inputs
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from ..model import TireModel
-    from ..model.mf import MFOutput
+    from ..model import MFOutput, TireModel
+    from ..recording.series import WheelSeries
     from .stages import FitResult
     from .sweeps import Segment
 
@@ -41,7 +41,7 @@ Members = list[tuple[int, npt.NDArray[np.intp]]]  # (wheel, sample indices)
 
 SETS = ("fitted", "heldout")
 MIN_LEVEL_FRACTION = 0.005  # condition levels with fewer samples are left out of the tables
-UNIT = {"Fx": "N", "Fy": "N", "Mx": "N m", "My": "N m", "Mz": "N m"}
+UNIT = {c: SERIES_UNITS[c] for c in FORCE_CHANNELS}
 SLIP_OF = {"Fx": "kappa", "My": "kappa", "Fy": "alpha", "Mx": "alpha", "Mz": "alpha"}
 # slip -> (axis label, factor from SI)
 SLIP_AXIS = {
@@ -79,7 +79,7 @@ def channel_metrics(measured: Floats, predicted: Floats) -> dict[str, float]:
     }
 
 
-def _predict(model, wheels) -> list[Any]:
+def _predict(model: TireModel, wheels: Sequence[WheelSeries]) -> list[MFOutput]:
     out = []
     for s in wheels:
         inputs, _, _ = stack_inputs(model, [s], ())
@@ -120,7 +120,7 @@ def _levels(result: FitResult) -> dict[str, tuple[Floats, str]]:
     return out
 
 
-def fit_metrics(result) -> dict[str, Any]:
+def fit_metrics(result: FitResult) -> dict[str, Any]:
     """Metrics of a FitResult (fills ``result.predictions``); JSON-ready."""
     wheels = result.wheels
     lengths = [len(s) for s in wheels]
@@ -132,7 +132,7 @@ def fit_metrics(result) -> dict[str, Any]:
         "fitted": np.concatenate(result.train_masks),
         "heldout": np.concatenate(result.heldout_masks),
     }
-    channels = [c for c in CHANNELS if any(getattr(s, c) is not None for s in wheels)]
+    channels = [c for c in FORCE_CHANNELS if any(getattr(s, c) is not None for s in wheels)]
     measured = {c: _stack([getattr(s, c) for s in wheels], lengths) for c in channels}
     pred = {
         k: {c: np.concatenate([np.asarray(getattr(o, c)) for o in outs]) for c in channels}
@@ -173,13 +173,13 @@ def fit_metrics(result) -> dict[str, Any]:
 # --- writing ---------------------------------------------------------------------------------
 
 
-def _fmt(x: float, digits: int = 4) -> str:
+def _fmt(x: float | None, digits: int = 4) -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
     return f"{x:.{digits}g}"
 
 
-def markdown(result) -> str:
+def markdown(result: FitResult) -> str:
     """The report as markdown text."""
     rep = result.report
     met = rep["metrics"]
@@ -295,13 +295,17 @@ def _plot_files(channels: Sequence[str]) -> list[str]:
     return [f"fit_{c}.png" for c in channels] + ["fit_sweeps.png", "fit_residual_time.png"]
 
 
-def report_paths(out_dir: str | os.PathLike, channels: Sequence[str] = CHANNELS) -> list[Path]:
+def report_paths(
+    out_dir: str | os.PathLike[str], channels: Sequence[str] = FORCE_CHANNELS
+) -> list[Path]:
     """Every file :func:`write_fit_report` may write in ``out_dir``."""
     d = Path(out_dir)
     return [d / n for n in (*REPORT_FILES, *_plot_files(channels))]
 
 
-def write_fit_report(result, out_dir: str | os.PathLike, *, overwrite: bool = False) -> Path:
+def write_fit_report(
+    result: FitResult, out_dir: str | os.PathLike[str], *, overwrite: bool = False
+) -> Path:
     """Write fit_report.md, fit_report.json and PNG plots into ``out_dir``; returns the md path.
 
     Raises FileExistsError (an OSError) naming the file when one exists and not ``overwrite``.
@@ -540,7 +544,7 @@ def _plot_sweeps(result: FitResult, channels: Sequence[str]) -> Figure:
     return fig
 
 
-def _save(fig, path: Path) -> None:
+def _save(fig: Figure, path: Path) -> None:
     """Atomic PNG write."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)

@@ -19,14 +19,20 @@ import sys
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
+import numpy.typing as npt
 
 from tire_model_ros.recording.series import WheelSeries
 
 from .core import evaluate_on, fit_coefficients, stack_inputs
 from .sweeps import Segment, holdout_mask, split_segments
+
+if TYPE_CHECKING:
+    from tire_model_ros.model import TireModel
+
+Bools = npt.NDArray[np.bool_]
 
 # Sample classes [rad, -]: "pure" means the other slip is within these bands.
 PURE_ALPHA_RAD = math.radians(0.5)
@@ -163,9 +169,9 @@ class FitResult:
     condition. The masks and segments are per wheel, in the order of the input series.
     """
 
-    model: Any
-    report: dict
-    start_model: Any = None
+    model: TireModel
+    report: dict[str, Any]
+    start_model: TireModel
     wheels: list[WheelSeries] = field(default_factory=list)
     train_masks: list[np.ndarray] = field(default_factory=list)
     heldout_masks: list[np.ndarray] = field(default_factory=list)
@@ -237,6 +243,11 @@ def _levels(x: np.ndarray, step: float) -> int:
     return len(_occupied(x, step))
 
 
+def _cat_required(series: Sequence[WheelSeries], name: str) -> npt.NDArray[np.float64]:
+    """A channel every WheelSeries has (kappa, alpha, gamma, Fz), concatenated."""
+    return np.concatenate([getattr(s, name) for s in series])
+
+
 def _cat(series: Sequence[WheelSeries], name: str) -> np.ndarray | None:
     arrays = [getattr(s, name) for s in series]
     if all(a is None for a in arrays):
@@ -244,13 +255,14 @@ def _cat(series: Sequence[WheelSeries], name: str) -> np.ndarray | None:
     return np.concatenate([a for a in arrays if a is not None])
 
 
-def data_conditions(model, series: Sequence[WheelSeries]) -> dict[str, Any]:
+def data_conditions(model: TireModel, series: Sequence[WheelSeries]) -> dict[str, Any]:
     """What the data can identify: load, camber, pressure and temperature variation."""
     P = model.params
     fz0 = float(P["FNOMIN"]) * float(P.get("LFZO", 1.0))
     p0 = float(P.get("NOMPRES", 0.0))
     T0 = float(P.get("NOMTEMP", 25.0)) or 25.0
-    Fz, gamma, p, T = (_cat(series, k) for k in ("Fz", "gamma", "p", "T"))
+    Fz, gamma = (_cat_required(series, k) for k in ("Fz", "gamma"))
+    p, T = (_cat(series, k) for k in ("p", "T"))
     dpi_spread = _spread(p) / p0 if (p is not None and p0 > 0) else 0.0
     dT_spread = _spread(T) / T0 if T is not None else 0.0
     return {
@@ -268,7 +280,7 @@ def data_conditions(model, series: Sequence[WheelSeries]) -> dict[str, Any]:
     }
 
 
-def stage_names(stage: Stage, cond: Mapping[str, Any], model) -> list[str]:
+def stage_names(stage: Stage, cond: Mapping[str, Any], model: TireModel) -> list[str]:
     """Coefficients of ``stage`` that the data conditions allow (and the model knows)."""
     names = list(stage.base)
     if cond["load_varies"]:
@@ -295,10 +307,10 @@ def stage_names(stage: Stage, cond: Mapping[str, Any], model) -> list[str]:
     return seen
 
 
-def sample_mask(series: WheelSeries, kind: str) -> np.ndarray:
+def sample_mask(series: WheelSeries, kind: str) -> Bools:
     """Samples of a class: pure longitudinal, pure lateral, combined, or any pure slip."""
-    k = np.abs(np.asarray(series.kappa))
-    a = np.abs(np.asarray(series.alpha))
+    k = np.abs(np.asarray(series.kappa, dtype=np.float64))
+    a = np.abs(np.asarray(series.alpha, dtype=np.float64))
     pure_long = a < PURE_ALPHA_RAD
     pure_lat = k < PURE_KAPPA
     if kind == "pure_long":
@@ -315,18 +327,23 @@ def sample_mask(series: WheelSeries, kind: str) -> np.ndarray:
 # --- physical checks ------------------------------------------------------------------------
 
 
-def _sgn(x: np.ndarray) -> np.ndarray:
-    return np.where(x < 0, -1.0, 1.0)
+def _sgn(x: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    return np.where(np.asarray(x) < 0, -1.0, 1.0)
 
 
-def physical_checks(stage: str, model, series: Sequence[WheelSeries]) -> dict[str, float]:
+def physical_checks(
+    stage: str, model: TireModel, series: Sequence[WheelSeries]
+) -> dict[str, float]:
     """C > 0, D > 0, E <= 1 of the stage's Magic Formula evaluated on the data's operating
     points: condition -> fraction of the samples where it fails (only failing ones listed)."""
     P = model.params
-    g = lambda k, d=0.0: float(P.get(k, d))  # noqa: E731
+
+    def g(k: str, d: float = 0.0) -> float:
+        return float(P.get(k, d))
+
     if not series:
         return {}
-    Fz, kappa, alpha, gamma = (_cat(series, k) for k in ("Fz", "kappa", "alpha", "gamma"))
+    Fz, kappa, alpha, gamma = (_cat_required(series, k) for k in ("Fz", "kappa", "alpha", "gamma"))
     fz0 = g("FNOMIN") * g("LFZO", 1.0)
     dfz = (Fz - fz0) / fz0
     msgs: dict[str, float] = {}
@@ -411,7 +428,7 @@ def _condition_keys(series: WheelSeries, segs: Sequence[Segment]) -> list[tuple[
     return keys
 
 
-def usable_mask(series: WheelSeries, options: FitOptions) -> np.ndarray:
+def usable_mask(series: WheelSeries, options: FitOptions) -> Bools:
     """Samples kept for fitting: finite inputs, warm-up dropped."""
     ok = np.isfinite(series.Fz) & np.isfinite(series.kappa) & np.isfinite(series.alpha)
     if options.warmup_s > 0 and len(series):
@@ -421,7 +438,8 @@ def usable_mask(series: WheelSeries, options: FitOptions) -> np.ndarray:
         ok &= series.t >= series.t[0] + float(warm_end)
     if options.min_temperature is not None and series.T is not None:
         ok &= options.min_temperature <= series.T
-    return ok
+    mask: Bools = ok
+    return mask
 
 
 def _has_channel(series: Sequence[WheelSeries], c: str) -> bool:
@@ -434,9 +452,9 @@ def _has_channel(series: Sequence[WheelSeries], c: str) -> bool:
 
 def fit_recording(
     wheels: Sequence[WheelSeries] | Mapping[str, WheelSeries],
-    model,
+    model: TireModel,
     options: FitOptions | None = None,
-    **kwargs,
+    **kwargs: Any,
 ) -> FitResult:
     """Staged fit of ``model`` to the wheels of one or more recordings.
 
@@ -615,7 +633,7 @@ def fit_recording(
 
 
 def _skip_reason(
-    st: Stage, cond: Mapping[str, Any], wanted: set | None, train: Sequence[WheelSeries]
+    st: Stage, cond: Mapping[str, Any], wanted: set[str] | None, train: Sequence[WheelSeries]
 ) -> str:
     if wanted is not None and st.name not in wanted:
         return "not requested"
@@ -643,15 +661,15 @@ def _skip_reason(
     return ""
 
 
-def past_peak(model, series: Sequence[WheelSeries]) -> dict[str, bool]:
+def past_peak(model: TireModel, series: Sequence[WheelSeries]) -> dict[str, bool]:
     """Whether the samples reach past the pure-slip force peak of ``model``: some samples
     beyond 1.2 times the peak slip (the slip of maximum |Fx0| or |Fy0| at each sample's load)."""
     out = {"long": False, "lat": False}
     if not series:
         return out
-    Fz = _cat(series, "Fz")
-    kappa = np.abs(_cat(series, "kappa"))
-    alpha = np.abs(_cat(series, "alpha"))
+    Fz = _cat_required(series, "Fz")
+    kappa = np.abs(_cat_required(series, "kappa"))
+    alpha = np.abs(_cat_required(series, "alpha"))
     ok = np.isfinite(Fz) & np.isfinite(kappa) & np.isfinite(alpha) & (Fz > 0)
     if not ok.any():
         return out
@@ -713,9 +731,9 @@ def _info_summary(info: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _changed(before, after) -> dict[str, list[float]]:
+def _changed(before: TireModel, after: TireModel) -> dict[str, list[float]]:
     """Coefficients whose value changed: name -> [before, after]."""
-    out = {}
+    out: dict[str, list[float]] = {}
     for k, v in after.params.items():
         v0 = before.params.get(k)
         if isinstance(v, (int, float)) and v0 is not None and v0 != v:

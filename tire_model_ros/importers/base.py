@@ -22,21 +22,24 @@ import numpy as np
 import numpy.typing as npt
 
 from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.vocabulary import (
+    DIAGNOSED_CHANNELS,
+    FORCE_CHANNELS,
+    OPTIONAL_SERIES,
+    RIG_PREFIX,
+)
 
 Floats = npt.NDArray[np.float64]
 
-DEFAULT_PREFIX = "/rig/wheel"
+DEFAULT_PREFIX = RIG_PREFIX
 #: ``--omit`` words (those of ``tire-model simulate``) -> the channels they leave out.
 OMITTABLE: dict[str, tuple[str, ...]] = {
-    "temperature": ("T",),
-    "pressure": ("p",),
-    "velocity": ("Vx",),
+    **{word: (channel,) for word, channel in OPTIONAL_SERIES.items()},
     "moments": ("Mx", "My", "Mz"),
 }
 INPUTS = ("kappa", "alpha", "gamma", "Fz")  # every recording needs them (INTERFACE.md wheel)
-FORCES = ("Fx", "Fy", "Mz")  # at least one measured
-OPTIONAL = ("p", "T", "Vx", "Mx", "My")
-CHANNELS = (*INPUTS, "Fx", "Fy", "Mx", "My", "Mz", "p", "T", "Vx")
+FORCES = DIAGNOSED_CHANNELS  # at least one measured
+CHANNELS = (*INPUTS, *FORCE_CHANNELS, *OPTIONAL_SERIES.values())
 # Sign check windows: near-zero slip, where every tyre's slope has the sign of its axes.
 SIGN_ALPHA_RAD = (math.radians(0.3), math.radians(4.0))
 SIGN_KAPPA = (0.005, 0.05)

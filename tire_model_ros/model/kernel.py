@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from . import coef as c
 from . import vmath as vm
@@ -53,6 +54,8 @@ from .turnslip import (
     zeta7_zeta8,
 )
 from .vertical import contact_patch, deflection_61, deflection_62, relaxation, rolling_state
+
+F64 = npt.NDArray[np.float64]
 
 # fmt: off
 OUT_NAMES: tuple[str, ...] = (
@@ -486,8 +489,22 @@ def extras_loop(P, Fz, kappa, alpha, gamma, Vx, p, phit, omega, limits, converge
         out[P_USED, i] = p_
 
 
-def evaluate_batch(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, limits, out,
-                   turn_slip=False, alpha_star=False):  # fmt: skip
+def evaluate_batch(
+    P: F64,
+    Fz: F64,
+    kappa: F64,
+    alpha: F64,
+    gamma: F64,
+    Vx: F64,
+    p: F64,
+    T: F64,
+    phit: F64,
+    omega: F64,
+    limits: bool,
+    out: F64,
+    turn_slip: bool = False,
+    alpha_star: bool = False,
+) -> None:
     """Evaluate every sample i of the 1-D input arrays into column i of ``out``.
 
     ``out`` has ``N_FORCES`` rows (forces and moments only) or ``N_OUT`` rows (everything).

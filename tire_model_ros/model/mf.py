@@ -21,10 +21,15 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
+from numpy.typing import ArrayLike
 
 from . import coef as c
 from .kernel import N_FORCES, N_OUT, OUT_NAMES, evaluate_batch, evaluate_point
 from .params import PARAMETERS
+
+#: (Fx, Fy, Fz [N], Mx, My, Mz [N m]) of one sample, ISO-W axes.
+Wrench = tuple[float, float, float, float, float, float]
 
 if TYPE_CHECKING:
     from .tir import TirData
@@ -139,7 +144,18 @@ class TireModel:
         # One validation for the node, the fit and the diagnosis: the parameter table's ranges.
         return TireModel(self._tir.with_params(updates))
 
-    def _inputs(self, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega):
+    def _inputs(
+        self,
+        Fz: ArrayLike,
+        kappa: ArrayLike,
+        alpha: ArrayLike,
+        gamma: ArrayLike,
+        Vx: ArrayLike | None,
+        p: ArrayLike | None,
+        T: ArrayLike | None,
+        phit: ArrayLike,
+        omega: ArrayLike | None,
+    ) -> tuple[tuple[int, ...], list[npt.NDArray[np.float64]]]:
         Vx = self._params["LONGVL"] if Vx is None else Vx
         p = self._p_nom if p is None else p
         T = self._params["NOMTEMP"] if T is None else T
@@ -160,9 +176,11 @@ class TireModel:
             flat.append(a.reshape(-1))
         return shape, flat
 
-    def evaluate(self, Fz, kappa, alpha, gamma=0.0, Vx=None, p=None, T=None, *, phit=0.0,
-                 omega=None, limits: bool = True, full: bool = True, turn_slip: bool = False,
-                 alpha_star: bool = False) -> MFOutput:  # fmt: skip
+    def evaluate(self, Fz: ArrayLike, kappa: ArrayLike, alpha: ArrayLike, gamma: ArrayLike = 0.0,
+                 Vx: ArrayLike | None = None, p: ArrayLike | None = None,
+                 T: ArrayLike | None = None, *, phit: ArrayLike = 0.0,
+                 omega: ArrayLike | None = None, limits: bool = True, full: bool = True,
+                 turn_slip: bool = False, alpha_star: bool = False) -> MFOutput:  # fmt: skip
         """Evaluate the model; array inputs broadcast against each other.
 
         Parameters
@@ -200,10 +218,12 @@ class TireModel:
         return MFOutput(**values)
 
     def evaluate_one(self, Fz: float, kappa: float, alpha: float, gamma: float, Vx: float,
-                     p: float, T: float, limits: bool = True):  # fmt: skip
+                     p: float, T: float, limits: bool = True) -> Wrench:  # fmt: skip
         """(Fx, Fy, Fz, Mx, My, Mz) of one sample; all inputs required, SI units, p gauge."""
-        return evaluate_point(self._P, float(Fz), float(kappa), float(alpha), float(gamma),
-                              float(Vx), float(p), float(T), bool(limits))  # fmt: skip
+        out: Wrench = evaluate_point(self._P, float(Fz), float(kappa), float(alpha),
+                                     float(gamma), float(Vx), float(p), float(T),
+                                     bool(limits))  # fmt: skip
+        return out
 
     def __repr__(self) -> str:
         path = getattr(self._tir, "path", None)

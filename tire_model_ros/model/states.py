@@ -22,14 +22,18 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from tire_model_ros.vocabulary import STANDARD_ATMOSPHERE_PA
+
+if TYPE_CHECKING:
+    from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
 VERSION = 2
 READS = (1, 2)  # version 1 (no slow node, shift or sidewall) reads as a subset of 2
-P_ATM_PA = 101325.0  # standard atmosphere [Pa], gauge -> absolute
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 NODES = ("thermal", "thermal_slow", "gas")
@@ -214,14 +218,15 @@ def _wheel(d: object, where: str) -> WheelEffects:
 def gas_pressure_Pa(p0_gauge_Pa: Any, rise_K: Any, T0_C: float) -> Any:
     """Gauge pressure at constant volume after a gas-temperature rise: p_abs ~ T_abs (numbers
     or arrays; the diagnosis' gas node and the node's use this one form)."""
-    p0_abs = p0_gauge_Pa + P_ATM_PA
-    return p0_abs * (T0_C + T_ABS0_C + rise_K) / (T0_C + T_ABS0_C) - P_ATM_PA
+    p0_abs = p0_gauge_Pa + STANDARD_ATMOSPHERE_PA
+    return p0_abs * (T0_C + T_ABS0_C + rise_K) / (T0_C + T_ABS0_C) - STANDARD_ATMOSPHERE_PA
 
 
 def relative_deflection(Fz: Any, FNOMIN: float, p_gauge_Pa: Any, p_nom_Pa: float) -> Any:
     """Tyre deflection relative to the nominal one, ~ (Fz / FNOMIN) / (p_abs / p_nom_abs): the
     load a given inflation pressure has to carry (the gate of sidewall contact)."""
-    ratio = (np.maximum(p_gauge_Pa, -0.9 * P_ATM_PA) + P_ATM_PA) / (p_nom_Pa + P_ATM_PA)
+    p_atm = STANDARD_ATMOSPHERE_PA
+    ratio = (np.maximum(p_gauge_Pa, -0.9 * p_atm) + p_atm) / (p_nom_Pa + p_atm)
     return (Fz / FNOMIN) / np.maximum(ratio, 0.05)
 
 
@@ -315,7 +320,8 @@ class EffectState:
         s = 1.0
         if self._table is not None:
             Vs = abs(Vx) * math.hypot(kappa, math.tan(alpha))
-            s *= float(np.interp(math.log(max(Vs, 1e-4)), *self._table))
+            ln_Vs, mu = self._table
+            s *= float(np.interp(math.log(max(Vs, 1e-4)), ln_Vs, mu))
         s = max(s, MIN_MU_SCALE)
         if s != 1.0:
             kappa, alpha = kappa / s, math.atan(math.tan(alpha) / s)
@@ -323,7 +329,7 @@ class EffectState:
 
     def evaluate(
         self,
-        model: Any,
+        model: TireModel,
         t_s: float,
         Fz: float,
         kappa: float,
@@ -336,7 +342,7 @@ class EffectState:
         T_nom: float,
         FNOMIN: float,
         limits: bool = True,
-    ) -> tuple[float, ...]:
+    ) -> Wrench:
         """One sample of the improved model: :meth:`inputs`, ``model.evaluate_one`` at them,
         :meth:`outputs` (Fx, Fy, Fz, Mx, My, Mz). What the node computes per slip message."""
         load = Fz / FNOMIN if FNOMIN > 0 else 0.0
@@ -350,14 +356,14 @@ class EffectState:
 
     def outputs(
         self,
-        out: tuple[float, ...],
+        out: Wrench,
         s: float,
         Fz: float,
         kappa: float,
         alpha: float,
         Vx: float,
         FNOMIN: float,
-    ) -> tuple[float, ...]:
+    ) -> Wrench:
         """(Fx, Fy, Fz, Mx, My, Mz) scaled by s (Fx, Fy, Mz), Fy by the sidewall factor, with
         the offsets (their load part in proportion to Fz / FNOMIN); its frictional power
         |Fx V kappa| + |Fy V tan(alpha)| (the slips before the similarity method) drives the

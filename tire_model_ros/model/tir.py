@@ -827,14 +827,14 @@ def _body_lines(tir: TirData) -> dict[str, list[str]]:
         section = STRING_KEYS.get(key) or tir.extra_sections.get(key, "MODEL")
         body.setdefault(section, []).append(_line(key, _quote(text)))
     for name, spec in PARAMETERS.items():
-        value = tir.params.get(name, spec.default)
-        if _worth_writing(tir, name, value):
-            body[spec.section].append(_line(name, _format_number(value), spec.description))
-    for key, value in tir.params.items():
+        number = tir.params.get(name, spec.default)
+        if _worth_writing(tir, name, number):
+            body[spec.section].append(_line(name, _format_number(number), spec.description))
+    for key, number in tir.params.items():
         if key not in PARAMETERS and key != "FITTYP":  # FITTYP is written from tir.fittyp
             section = tir.extra_sections.get(key, "MODEL")
             body.setdefault(section, []).append(
-                _line(key, _format_number(value), "(not used by this model)")
+                _line(key, _format_number(number), "(not used by this model)")
             )
     body["TEMPERATURE_COEFFICIENTS"][:0] = _TEMPERATURE_NOTE
     return body

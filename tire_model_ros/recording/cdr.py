@@ -21,13 +21,24 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import lru_cache
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
+
+from tire_model_ros.vocabulary import (
+    FLUID_PRESSURE,
+    NS_PER_S,
+    TEMPERATURE,
+    TWIST_STAMPED,
+    VECTOR3_STAMPED,
+    WRENCH_STAMPED,
+)
 
 #: float64 fields after the header, in CDR order, for each supported type.
 LAYOUTS: dict[str, tuple[str, ...]] = {
-    "geometry_msgs/msg/Vector3Stamped": ("vector.x", "vector.y", "vector.z"),
-    "geometry_msgs/msg/WrenchStamped": (
+    VECTOR3_STAMPED: ("vector.x", "vector.y", "vector.z"),
+    WRENCH_STAMPED: (
         "wrench.force.x",
         "wrench.force.y",
         "wrench.force.z",
@@ -35,9 +46,9 @@ LAYOUTS: dict[str, tuple[str, ...]] = {
         "wrench.torque.y",
         "wrench.torque.z",
     ),
-    "sensor_msgs/msg/FluidPressure": ("fluid_pressure", "variance"),
-    "sensor_msgs/msg/Temperature": ("temperature", "variance"),
-    "geometry_msgs/msg/TwistStamped": (
+    FLUID_PRESSURE: ("fluid_pressure", "variance"),
+    TEMPERATURE: ("temperature", "variance"),
+    TWIST_STAMPED: (
         "twist.linear.x",
         "twist.linear.y",
         "twist.linear.z",
@@ -46,8 +57,6 @@ LAYOUTS: dict[str, tuple[str, ...]] = {
         "twist.angular.z",
     ),
 }
-
-_NS = 1_000_000_000
 
 
 class CdrError(ValueError):
@@ -58,15 +67,21 @@ class CdrError(ValueError):
         self.index = index
 
 
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+
 @lru_cache(maxsize=1)
-def typestore():
+def typestore() -> Typestore:
     """The ROS 2 Jazzy typestore of rosbags (built once; it takes ~0.1 s)."""
     from rosbags.typesys import Stores, get_typestore
 
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-def _gather_words(buf: np.ndarray, offsets: np.ndarray, count: int, dtype: str) -> np.ndarray:
+def _gather_words(
+    buf: npt.NDArray[np.uint8], offsets: npt.NDArray[np.int64], count: int, dtype: str
+) -> npt.NDArray[Any]:
     """``count`` consecutive words of ``dtype`` at each byte offset of ``buf``, (n, count).
 
     Gathers from a view of ``buf`` with a 1-byte stride (word i starts at byte i, unaligned
@@ -78,7 +93,8 @@ def _gather_words(buf: np.ndarray, offsets: np.ndarray, count: int, dtype: str) 
         return np.empty((len(offsets), count), dtype)
     window = np.ndarray((len(buf) - size + 1,), dtype, buffer=buf, strides=(1,))
     index = np.asarray(offsets, np.int64)[:, None] + size * np.arange(count, dtype=np.int64)
-    return window[index]
+    words: npt.NDArray[Any] = window[index]
+    return words
 
 
 def join(raw: Sequence[bytes | memoryview]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -130,14 +146,14 @@ def decode(
     nsec = words[:, 1].astype(np.int64)
     slen = words[:, 2].astype(np.int64)
     data_off = 4 + ((12 + slen + 7) // 8) * 8
-    ok &= (slen >= 1) & (data_off + 8 * k <= lens) & (nsec < _NS)
+    ok &= (slen >= 1) & (data_off + 8 * k <= lens) & (nsec < NS_PER_S)
     values = np.empty((n, k))
     good = np.flatnonzero(ok)
     if len(good) == n:
         values[:] = _gather_words(buf, starts + data_off, k, "<f8")
     elif len(good):
         values[good] = _gather_words(buf, starts[good] + data_off[good], k, "<f8")
-    stamp_ns = sec * _NS + nsec
+    stamp_ns = sec * NS_PER_S + nsec
     for i in np.flatnonzero(~ok):  # rare: big-endian CDR or a damaged message
         data = buf[starts[i] : starts[i] + lens[i]].tobytes()
         try:
@@ -157,8 +173,8 @@ def _field(msg: object, dotted: str) -> float:
 
 def decode_reference(msgtype: str, data: bytes | memoryview) -> tuple[int, np.ndarray]:
     """One message decoded with rosbags' deserialiser: (stamp [ns], fields). The reference."""
-    msg = typestore().deserialize_cdr(bytes(data), msgtype)
-    stamp = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
+    msg: Any = typestore().deserialize_cdr(bytes(data), msgtype)  # a generated dataclass
+    stamp = msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec
     return stamp, np.array([_field(msg, f) for f in LAYOUTS[msgtype]])
 
 
@@ -182,13 +198,13 @@ def encode_array(
             ("vals", "<f8", k),
         ]
     )
-    sec = stamp_ns // _NS
+    sec = stamp_ns // NS_PER_S
     if len(sec) and (sec.min() < -(2**31) or sec.max() >= 2**31):
         raise ValueError("a stamp is outside the int32 seconds of builtin_interfaces/Time")
     rec = np.zeros(len(stamp_ns), dtype)
     rec["enc"] = (0, 1, 0, 0)
     rec["sec"] = sec
-    rec["nsec"] = stamp_ns % _NS
+    rec["nsec"] = stamp_ns % NS_PER_S
     rec["slen"] = len(name)
     rec["name"] = name
     rec["vals"] = values
@@ -210,4 +226,4 @@ def header_stamps(buf: np.ndarray, starts: np.ndarray) -> np.ndarray:
     if len(starts) == 0:
         return np.zeros(0, np.int64)
     words = _gather_words(buf, np.asarray(starts, np.int64) + 4, 2, "<u4")
-    return words[:, 0].view("<i4").astype(np.int64) * _NS + words[:, 1].astype(np.int64)
+    return words[:, 0].view("<i4").astype(np.int64) * NS_PER_S + words[:, 1].astype(np.int64)

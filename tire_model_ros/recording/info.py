@@ -3,42 +3,20 @@
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 
 from tire_model_ros.recording import cdr
-from tire_model_ros.recording.bag import (
-    CHANNEL_TYPES,
-    RecordingError,
-    find_wheels,
-    read_raw,
-    wheels_from_raw,
-)
-
-_NS = 1_000_000_000
-#: WheelSeries channels listed with their ranges, and their units.
-UNITS = {
-    "kappa": "-",
-    "alpha": "rad",
-    "gamma": "rad",
-    "Fz": "N",
-    "p": "Pa",
-    "T": "degC",
-    "Vx": "m/s",
-    "Fx": "N",
-    "Fy": "N",
-    "Fz_meas": "N",
-    "Mx": "N m",
-    "My": "N m",
-    "Mz": "N m",
-}
+from tire_model_ros.recording.read import RecordingError, find_wheels, read_raw, wheels_from_raw
+from tire_model_ros.vocabulary import CHANNEL_TYPES, NS_PER_S, SERIES_UNITS
 
 
 def _rate_hz(stamps_ns: np.ndarray) -> float | None:
     """Mean message rate [Hz] from header stamps; None for fewer than two distinct stamps."""
     if len(stamps_ns) < 2 or stamps_ns[-1] == stamps_ns[0]:
         return None
-    return float((len(stamps_ns) - 1) * _NS / (stamps_ns[-1] - stamps_ns[0]))
+    return float((len(stamps_ns) - 1) * NS_PER_S / (stamps_ns[-1] - stamps_ns[0]))
 
 
 def _range(values: np.ndarray | None) -> list[float] | None:
@@ -48,7 +26,7 @@ def _range(values: np.ndarray | None) -> list[float] | None:
     return [float(finite.min()), float(finite.max())] if len(finite) else None
 
 
-def summarize(path: str | os.PathLike) -> dict:
+def summarize(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Summary of a bag; raises RecordingError when it cannot be read.
 
     Topics of the known fixed-layout types get header-stamp ranges and rates; a bag without a
@@ -59,7 +37,7 @@ def summarize(path: str | os.PathLike) -> dict:
     first, last = [], []
     for name, (msgtype, announced) in sorted(bag.all_topics.items()):
         raw = bag.topics.get(name)
-        entry: dict = {"type": msgtype, "count": len(raw) if raw is not None else 0}
+        entry: dict[str, Any] = {"type": msgtype, "count": len(raw) if raw is not None else 0}
         if announced != entry["count"]:
             entry["count_announced"] = announced
         if raw is not None and len(raw):
@@ -71,20 +49,20 @@ def summarize(path: str | os.PathLike) -> dict:
             times = stamps if stamps is not None else np.sort(log)
             first.append(times[0])
             last.append(times[-1])
-            entry["first_s"] = times[0] / _NS
-            entry["last_s"] = times[-1] / _NS
+            entry["first_s"] = times[0] / NS_PER_S
+            entry["last_s"] = times[-1] / NS_PER_S
             entry["rate_hz"] = _rate_hz(times)
             entry["time_source"] = "header.stamp" if stamps is not None else "log time"
         topics[name] = entry
-    out: dict = {
+    out: dict[str, Any] = {
         "path": str(bag.path),
         "storage": bag.storage,
         "messages": bag.messages_read,
         "messages_announced": bag.message_count,
         "reader_fallback": bag.fallback,
-        "start_s": min(first) / _NS if first else None,
-        "end_s": max(last) / _NS if last else None,
-        "duration_s": (max(last) - min(first)) / _NS if first else 0.0,
+        "start_s": min(first) / NS_PER_S if first else None,
+        "end_s": max(last) / NS_PER_S if last else None,
+        "duration_s": (max(last) - min(first)) / NS_PER_S if first else 0.0,
         "topics": topics,
         "wheels": {},
     }
@@ -108,7 +86,7 @@ def summarize(path: str | os.PathLike) -> dict:
             "rate_hz": _rate_hz(meta["t_ns"]),
             "channels": {
                 name: {"unit": unit, "range": _range(getattr(w, name))}
-                for name, unit in UNITS.items()
+                for name, unit in SERIES_UNITS.items()
                 if getattr(w, name) is not None
             },
             "absent": [name for name in ("p", "T", "Vx") if getattr(w, name) is None],
@@ -129,7 +107,7 @@ def _fmt(x: float | None, spec: str = ".6g") -> str:
     return "-" if x is None else format(x, spec)
 
 
-def format_summary(info: dict) -> str:
+def format_summary(info: dict[str, Any]) -> str:
     """Human-readable text of ``summarize``'s result."""
     lines = [
         f"bag:       {info['path']} ({info['storage']})",

@@ -17,15 +17,26 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from tire_model_ros.recording.cdr import _gather_words
 
+if TYPE_CHECKING:
+    from mcap.records import ChunkIndex
+
 _MSG_HEADER = 1 + 8 + 22  # opcode, record length, channel_id..publish_time
+Bytes = npt.NDArray[np.uint8]
+Int64s = npt.NDArray[np.int64]
+#: One topic's messages: (message type, data starts, data lengths, log times [ns]).
+TopicIndex = tuple[str, Int64s, Int64s, Int64s]
+#: (topic table: topic -> (type, count), messages announced, buffer, {topic: TopicIndex}).
+Indexed = tuple[dict[str, tuple[str, int]], int, Bytes, dict[str, TopicIndex]]
 
 
-def _chunk_records(filebuf: np.ndarray, chunk) -> np.ndarray:
+def _chunk_records(filebuf: Bytes, chunk: ChunkIndex) -> Bytes:
     """The uncompressed records of one chunk (a view into ``filebuf`` when not compressed)."""
     from rosbags.rosbag2.storage_mcap import decompress
 
@@ -40,7 +51,7 @@ def _chunk_records(filebuf: np.ndarray, chunk) -> np.ndarray:
     return np.frombuffer(raw, np.uint8)
 
 
-def _message_index(filebuf: np.ndarray, offset: int, channel_id: int) -> np.ndarray:
+def _message_index(filebuf: Bytes, offset: int, channel_id: int) -> npt.NDArray[np.uint64]:
     """(log_time, offset) pairs of one MessageIndex record, shape (k, 2) uint64."""
     head = filebuf[offset : offset + 15]
     if len(head) < 15 or head[0] != 0x07:
@@ -51,7 +62,7 @@ def _message_index(filebuf: np.ndarray, offset: int, channel_id: int) -> np.ndar
     return filebuf[offset + 15 : offset + 15 + nbytes].view("<u8").reshape(-1, 2)
 
 
-def read_indexed(path: Path, select: Callable[[str], bool]):
+def read_indexed(path: Path, select: Callable[[str], bool]) -> Indexed | None:
     """Messages of the selected topics of an indexed MCAP file, or None (see module doc).
 
     Returns
@@ -73,9 +84,9 @@ def read_indexed(path: Path, select: Callable[[str], bool]):
     }
     filebuf = np.fromfile(path, np.uint8)
     wanted = {cid for cid, ch in summary.channels.items() if select(ch.topic)}
-    segments: list[np.ndarray] = []
+    segments: list[Bytes] = []
     base = 0
-    parts: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {cid: [] for cid in wanted}
+    parts: dict[int, list[tuple[Int64s, Int64s]]] = {cid: [] for cid in wanted}
     counts = dict.fromkeys(summary.channels, 0)
     for chunk in chunks:
         records = _chunk_records(filebuf, chunk)
@@ -101,13 +112,13 @@ def read_indexed(path: Path, select: Callable[[str], bool]):
         if old[0] != msgtypes[cid]:
             raise ValueError(f"topic {ch.topic} has two message types")
         table[ch.topic] = (msgtypes[cid], old[1] + counts[cid])
-    found: dict[str, list] = {}
+    found: dict[str, tuple[str, list[Int64s], list[Int64s]]] = {}
     for cid in sorted(wanted):
         if parts[cid]:
-            entry = found.setdefault(summary.channels[cid].topic, [msgtypes[cid], [], []])
+            entry = found.setdefault(summary.channels[cid].topic, (msgtypes[cid], [], []))
             entry[1].extend(p[0] for p in parts[cid])
             entry[2].extend(p[1] for p in parts[cid])
-    result = {}
+    result: dict[str, TopicIndex] = {}
     for topic, (msgtype, recs, logs) in found.items():
         rec, log_ns = np.concatenate(recs), np.concatenate(logs)
         order = np.lexsort((rec, log_ns))
@@ -117,11 +128,11 @@ def read_indexed(path: Path, select: Callable[[str], bool]):
     return table, total, buffer, result
 
 
-def _u64(buf: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+def _u64(buf: Bytes, offsets: Int64s) -> npt.NDArray[np.uint64]:
     return _gather_words(buf, offsets, 1, "<u8")[:, 0]
 
 
-def _check_messages(records: np.ndarray, off: np.ndarray, cid: int) -> None:
+def _check_messages(records: Bytes, off: Int64s, cid: int) -> None:
     """Every indexed offset must hold a Message record of this channel inside the chunk."""
     if off.size == 0:
         return

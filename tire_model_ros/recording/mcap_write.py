@@ -16,10 +16,11 @@ from __future__ import annotations
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
-from io import BytesIO
+from io import BufferedWriter, BytesIO
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 MAGIC = b"\x89MCAP0\r\n"
 CHUNK_BYTES = 1 << 20
@@ -165,13 +166,13 @@ def write_mcap(
                 _u64(t0)
                 + _u64(t1)
                 + _u64(len(data))
-                + _u32(zlib.crc32(data))
+                + _u32(zlib.crc32(data.data))
                 + _str("")
                 + _u64(len(data))
             )
             chunk_start = f.tell()
             f.write(bytes([0x06]) + _u64(len(body) + len(data)) + body)
-            f.write(data)
+            f.write(data.data)
             chunk_length = f.tell() - chunk_start
             index_offsets = []
             for i in np.unique(order_batch[a:z]).tolist():
@@ -217,7 +218,9 @@ def write_mcap(
         )
 
 
-def _ordered_log(batches, order_batch, order_row) -> np.ndarray:
+def _ordered_log(
+    batches: Sequence[Batch], order_batch: npt.NDArray[np.int64], order_row: npt.NDArray[np.int64]
+) -> npt.NDArray[np.int64]:
     """Log times of the messages in write order."""
     out = np.empty(len(order_batch), np.int64)
     for i, b in enumerate(batches):
@@ -227,7 +230,14 @@ def _ordered_log(batches, order_batch, order_row) -> np.ndarray:
 
 
 def _write_summary(
-    f, batches, order_batch, log_sorted, schemas, channels, chunk_indexes, metadata_span
+    f: BufferedWriter,
+    batches: Sequence[Batch],
+    order_batch: npt.NDArray[np.int64],
+    log_sorted: npt.NDArray[np.int64],
+    schemas: bytes,
+    channels: bytes,
+    chunk_indexes: Sequence[bytes],
+    metadata_span: tuple[int, int],
 ) -> None:
     summary_start = f.tell()
     groups = []

@@ -37,7 +37,7 @@ def open_recording(
     from tire_model_ros.importers import MeasurementError, format_of, import_file
 
     if format_of(path) is None:
-        from tire_model_ros.recording.bag import read_recording
+        from tire_model_ros.recording.read import read_recording
 
         return read_recording(path, wheels=wheels)
     imported = import_file(path)

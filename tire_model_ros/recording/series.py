@@ -8,6 +8,7 @@ channels that were not recorded are ``None`` (never filled with NaN), so a consu
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,7 @@ class WheelSeries:
     Mx: np.ndarray | None = None
     My: np.ndarray | None = None
     Mz: np.ndarray | None = None
-    meta: dict = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         n = len(self.t)

@@ -16,13 +16,17 @@ model_temperature -> (none: the file's own TTX/TTY terms act on the true surface
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 from scipy.signal import lfilter
 
 from .thermal import HeatingParams
+
+#: Effects as given: names (each with its defaults), or name -> on/off or parameter overrides.
+EffectsSpec = str | Sequence[str] | Mapping[str, bool | Mapping[str, float | str] | None] | None
 
 DEG = math.pi / 180.0
 
@@ -80,7 +84,7 @@ DIAGNOSIS_WORD = {
 DEFAULT_ON = ("noise",)
 
 
-def resolve_effects(effects) -> dict[str, dict[str, float]]:
+def resolve_effects(effects: EffectsSpec) -> dict[str, dict[str, float]]:
     """Switched-on effects with their full parameter sets (defaults filled in).
 
     ``effects`` maps a name to True/False or to a dict of parameter overrides (a list of
@@ -150,7 +154,7 @@ def first_order_in_distance(
 
 
 @njit(cache=True)
-def _lag(u, a):
+def _lag(u: npt.NDArray[np.float64], a: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     out = np.empty_like(u)
     y = u[0]
     for i in range(u.shape[0]):

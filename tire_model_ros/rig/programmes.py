@@ -46,16 +46,20 @@ after the load and pressure blocks; default 0, none).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
+
+from tire_model_ros.vocabulary import RIG_PREFIX
+
+F64 = npt.NDArray[np.float64]
 
 DEG = math.pi / 180.0
 G_ACC = 9.81  # m/s^2
 
-RIG_PREFIX = "/rig/wheel"
 BELT_STOP = "belt stop"  # label of the pause where the belt halts between two runs
 CAR_PREFIXES = ("/car/fl", "/car/fr", "/car/rl", "/car/rr")
 
@@ -68,9 +72,9 @@ class Segment:
     i1: int
     kind: str  # warmup, lateral_sweep, longitudinal_sweep, combined_sweep, pause, ...
     label: str
-    info: dict = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
 
-    def to_json(self, rate_hz: float) -> dict:
+    def to_json(self, rate_hz: float) -> dict[str, Any]:
         return {
             "t0_s": self.i0 / rate_hz,
             "t1_s": self.i1 / rate_hz,
@@ -101,7 +105,7 @@ class Programme:
     wheels: list[WheelProgramme]
     T_ambient: np.ndarray  # degC
     run: np.ndarray  # int run index per sample (a run = a block between re-set-ups)
-    options: dict = field(default_factory=dict)
+    options: dict[str, Any] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -156,7 +160,16 @@ class RigBuilder:
 
     # -- primitives
     def _append(
-        self, kind: str, label: str, kappa, alpha, gamma=None, Fz=None, Vx=None, p=None, **info
+        self,
+        kind: str,
+        label: str,
+        kappa: F64,
+        alpha: F64,
+        gamma: F64 | None = None,
+        Fz: F64 | None = None,
+        Vx: F64 | None = None,
+        p: F64 | None = None,
+        **info: Any,
     ) -> None:
         m = len(kappa)
         if m == 0:
@@ -179,7 +192,15 @@ class RigBuilder:
     def _samples(self, duration_s: float) -> int:
         return max(1, round(duration_s * self.fs))
 
-    def set_state(self, *, Fz=None, Vx=None, p=None, gamma=None, duration_s=1.5) -> None:
+    def set_state(
+        self,
+        *,
+        Fz: float | None = None,
+        Vx: float | None = None,
+        p: float | None = None,
+        gamma: float | None = None,
+        duration_s: float = 1.5,
+    ) -> None:
         """Change load/speed/pressure/camber along a zero-slip transition (rig re-set-up)."""
         new = dict(self.state)
         for k, v in (("Fz", Fz), ("Vx", Vx), ("p", p), ("gamma", gamma)):
@@ -224,7 +245,7 @@ class RigBuilder:
         t = np.arange(math.ceil(t_knots[-1] * self.fs) + 1) / self.fs
         return np.interp(t, t_knots, pts)
 
-    def _info(self, **extra) -> dict:
+    def _info(self, **extra: Any) -> dict[str, Any]:
         s = self.state
         return {
             "Fz_N": s["Fz"],
@@ -264,7 +285,12 @@ class RigBuilder:
         )
 
     def longitudinal_sweep(
-        self, kappa_max=0.15, rate_per_s=0.05, reverse=False, alpha_deg=0.0, label="longitudinal"
+        self,
+        kappa_max: float = 0.15,
+        rate_per_s: float = 0.05,
+        reverse: bool = False,
+        alpha_deg: float = 0.0,
+        label: str = "longitudinal",
     ) -> None:
         """0 -> -k (braking) -> +k (drive) -> 0 (reverse: drive first) at constant rate."""
         k = kappa_max * (1.0 if reverse else -1.0)
@@ -288,7 +314,9 @@ class RigBuilder:
         self._append("transition", "alpha hold", np.zeros(len(ramp)), ramp)
         self.alpha_hold = a
 
-    def combined_sweep(self, alpha_deg: float, kappa_max=0.12, rate_per_s=0.05) -> None:
+    def combined_sweep(
+        self, alpha_deg: float, kappa_max: float = 0.12, rate_per_s: float = 0.05
+    ) -> None:
         """Slip angle ramped to alpha and held while kappa is swept, then ramped back."""
         a = alpha_deg * DEG
         ramp = self._path([0.0, a], 4.0 * DEG)
@@ -303,7 +331,13 @@ class RigBuilder:
         )
         self._append("transition", "alpha ramp", np.zeros(len(ramp)), ramp[::-1].copy())
 
-    def warmup(self, duration_s=30.0, alpha_deg=4.0, kappa=0.04, period_s=4.0) -> None:
+    def warmup(
+        self,
+        duration_s: float = 30.0,
+        alpha_deg: float = 4.0,
+        kappa: float = 0.04,
+        period_s: float = 4.0,
+    ) -> None:
         """Scrubbing: slip angle and slip ratio sine waves (tyre conditioning)."""
         m = self._samples(duration_s)
         t = np.arange(m) / self.fs
@@ -312,7 +346,9 @@ class RigBuilder:
         kap = kappa * np.sin(2 * math.pi * t / (period_s * 0.77)) * env
         self._append("warmup", "warm-up", kap, alpha, **self._info())
 
-    def heat_soak(self, duration_s=30.0, alpha_deg=5.0, period_s=3.0) -> None:
+    def heat_soak(
+        self, duration_s: float = 30.0, alpha_deg: float = 5.0, period_s: float = 3.0
+    ) -> None:
         """Sustained scrubbing that raises the carcass (bulk) temperature."""
         m = self._samples(duration_s)
         t = np.arange(m) / self.fs
@@ -323,7 +359,13 @@ class RigBuilder:
         alpha = np.convolve(alpha, np.ones(k) / k, mode="same")
         self._append("heat_soak", "heat soak", np.zeros(m), alpha, **self._info())
 
-    def steer_sine(self, freq_hz: float, amplitude_deg=2.0, cycles=6, label=None) -> None:
+    def steer_sine(
+        self,
+        freq_hz: float,
+        amplitude_deg: float = 2.0,
+        cycles: int = 6,
+        label: str | None = None,
+    ) -> None:
         """Sinusoidal slip angle (frequency response: relaxation lag grows with freq/speed)."""
         m = self._samples(cycles / freq_hz)
         t = np.arange(m) / self.fs
@@ -336,7 +378,9 @@ class RigBuilder:
             **self._info(freq_hz=freq_hz, amplitude_deg=amplitude_deg),
         )
 
-    def step_steer(self, alpha_deg=2.0, hold_s=3.0, rate_deg_s=40.0) -> None:
+    def step_steer(
+        self, alpha_deg: float = 2.0, hold_s: float = 3.0, rate_deg_s: float = 40.0
+    ) -> None:
         """Fast slip-angle step, held, and back (a relaxation-length test)."""
         a = alpha_deg * DEG
         up = self._path([0.0, a], rate_deg_s * DEG)
@@ -350,7 +394,7 @@ class RigBuilder:
             **self._info(alpha_deg=alpha_deg, rate_deg_s=rate_deg_s),
         )
 
-    def reference_sweep(self, label="reference") -> None:
+    def reference_sweep(self, label: str = "reference") -> None:
         tyre = self.tyre
         self.set_state(Fz=tyre.FNOMIN, Vx=self.speed, p=tyre.NOMPRES, gamma=0.0)
         self.lateral_sweep(label=label)
@@ -373,7 +417,7 @@ class RigBuilder:
 # ------------------------------------------------------------------ rig programmes
 
 
-def _flat_trac(b: RigBuilder, opt: dict) -> None:
+def _flat_trac(b: RigBuilder, opt: dict[str, Any]) -> None:
     ty = b.tyre
     A, kmax = opt["amplitude_deg"], opt["kappa_max"]
     F = ty.FNOMIN
@@ -428,7 +472,7 @@ def _flat_trac(b: RigBuilder, opt: dict) -> None:
         b.pause(2.0)
 
 
-def _lateral_sweeps(b: RigBuilder, opt: dict) -> None:
+def _lateral_sweeps(b: RigBuilder, opt: dict[str, Any]) -> None:
     F, A = b.tyre.FNOMIN, opt["amplitude_deg"]
     b.warmup(20.0)
     b.pause(3.0)
@@ -454,7 +498,7 @@ def _lateral_sweeps(b: RigBuilder, opt: dict) -> None:
         b.pause(2.0)
 
 
-def _longitudinal_sweeps(b: RigBuilder, opt: dict) -> None:
+def _longitudinal_sweeps(b: RigBuilder, opt: dict[str, Any]) -> None:
     F, k = b.tyre.FNOMIN, opt["kappa_max"]
     b.warmup(20.0)
     b.pause(3.0)
@@ -473,7 +517,7 @@ def _longitudinal_sweeps(b: RigBuilder, opt: dict) -> None:
         b.pause(2.0)
 
 
-def _combined(b: RigBuilder, opt: dict) -> None:
+def _combined(b: RigBuilder, opt: dict[str, Any]) -> None:
     F, A, k = b.tyre.FNOMIN, opt["amplitude_deg"], opt["kappa_max"]
     b.warmup(15.0)
     for _ in range(opt["repeats"]):
@@ -491,7 +535,7 @@ def _combined(b: RigBuilder, opt: dict) -> None:
         b.pause(2.0)
 
 
-def _camber(b: RigBuilder, opt: dict) -> None:
+def _camber(b: RigBuilder, opt: dict[str, Any]) -> None:
     A = opt["amplitude_deg"]
     b.warmup(15.0)
     for _ in range(opt["repeats"]):
@@ -505,7 +549,7 @@ def _camber(b: RigBuilder, opt: dict) -> None:
         b.pause(2.0)
 
 
-def _pressure(b: RigBuilder, opt: dict) -> None:
+def _pressure(b: RigBuilder, opt: dict[str, Any]) -> None:
     ty = b.tyre
     b.warmup(15.0)
     for _ in range(opt["repeats"]):
@@ -520,7 +564,7 @@ def _pressure(b: RigBuilder, opt: dict) -> None:
             b.pause(2.0)
 
 
-def _transient(b: RigBuilder, opt: dict) -> None:
+def _transient(b: RigBuilder, opt: dict[str, Any]) -> None:
     F = b.tyre.FNOMIN
     b.warmup(15.0)
     b.pause(2.0)
@@ -591,7 +635,7 @@ def _ttc_drive_brake(b: RigBuilder, opt: dict[str, Any]) -> None:
                 b.hold_slip_angle(0.0)
 
 
-_RIG: dict[str, Callable[[RigBuilder, dict], None]] = {
+_RIG: dict[str, Callable[[RigBuilder, dict[str, Any]], None]] = {
     "flat_trac": _flat_trac,
     "lateral_sweeps": _lateral_sweeps,
     "longitudinal_sweeps": _longitudinal_sweeps,
@@ -619,8 +663,10 @@ _DEFAULTS = {
 }
 
 
-def _options(tyre: TyreInfo, options: Mapping | None, omit) -> dict:
-    opt = dict(_DEFAULTS)
+def _options(
+    tyre: TyreInfo, options: Mapping[str, Any] | None, omit: Collection[str]
+) -> dict[str, Any]:
+    opt: dict[str, Any] = dict(_DEFAULTS)
     for k, v in (options or {}).items():
         if k not in opt:
             raise ValueError(f"programme option {k!r} unknown (known: {', '.join(sorted(opt))})")
@@ -644,8 +690,8 @@ def build_programme(
     name: str,
     params: Mapping[str, float],
     rate_hz: float = 100.0,
-    options: Mapping | None = None,
-    omit=(),
+    options: Mapping[str, Any] | None = None,
+    omit: Collection[str] = (),
 ) -> Programme:
     """The programme ``name`` for the tyre of ``params`` (FNOMIN, LONGVL, NOMPRES...)."""
     if rate_hz <= 0 or not math.isfinite(rate_hz):

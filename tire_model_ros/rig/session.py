@@ -25,13 +25,24 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..model import TireModel
+from ..model.tir import TirData
 from ..recording.series import WheelSeries
 from . import effects as fx
-from .programmes import BELT_STOP, Programme, TyreInfo, WheelProgramme, build_programme
+from .effects import EffectsSpec
+from .programmes import (
+    BELT_STOP,
+    Programme,
+    Segment,
+    TyreInfo,
+    WheelProgramme,
+    build_programme,
+)
 from .thermal import (
     HeatingParams,
     frictional_power,
@@ -42,6 +53,10 @@ from .thermal import (
 )
 from .track import invert_pure
 
+F64 = npt.NDArray[np.float64]
+#: Switched-on effects with their parameters (``effects.resolve_effects``).
+Effects = dict[str, dict[str, float]]
+
 EPOCH_NS = 1_767_225_600 * 10**9  # 2026-01-01T00:00:00Z: fixed, so bags are reproducible
 OMITTABLE = ("temperature", "pressure", "velocity", "moments")
 IR_SENSOR_TAU_S = 0.3
@@ -49,10 +64,10 @@ TRUTH_VERSION = 1
 MAX_THERMAL_ITERATIONS = 16  # Picard iterations power -> temperature -> forces (tol 1e-3)
 
 
-def _as_model(tir_or_model) -> TireModel:
+def _as_model(tir_or_model: str | os.PathLike[str] | TireModel | TirData) -> TireModel:
     if isinstance(tir_or_model, TireModel):
         return tir_or_model
-    if isinstance(tir_or_model, (str, Path)):
+    if isinstance(tir_or_model, str | os.PathLike):
         return TireModel.from_file(tir_or_model)
     return TireModel(tir_or_model)  # a TirData
 
@@ -60,7 +75,17 @@ def _as_model(tir_or_model) -> TireModel:
 # ------------------------------------------------------------------ tyre forces
 
 
-def _combined_similarity(model, Fz, kappa, alpha, gamma, Vx, p, T, peak_scale):
+def _combined_similarity(
+    model: TireModel,
+    Fz: F64,
+    kappa: F64,
+    alpha: F64,
+    gamma: F64,
+    Vx: F64,
+    p: F64,
+    T: F64 | None,
+    peak_scale: float,
+) -> dict[str, F64]:
     """Combined slip by normalised total slip (similarity method, Pacejka 2012 §4.3.3 idea):
     sx = k/(1+k), sy = tan a/(1+k), each divided by its peak-ish slip mu Fz/K; the pure-slip
     curves are read at the total normalised slip and shared by direction."""
@@ -87,7 +112,17 @@ def _combined_similarity(model, Fz, kappa, alpha, gamma, Vx, p, T, peak_scale):
 
 
 def tyre_forces(
-    model: TireModel, Fz, kappa, alpha, gamma, Vx, p, T, mu, stiff, combined: dict | None
+    model: TireModel,
+    Fz: F64,
+    kappa: F64,
+    alpha: F64,
+    gamma: F64,
+    Vx: F64,
+    p: F64,
+    T: F64 | None,
+    mu: F64,
+    stiff: F64,
+    combined: Mapping[str, float] | None,
 ) -> dict[str, np.ndarray]:
     """Forces of the tyre on effective inputs with friction scale ``mu`` and slip-stiffness
     scale ``stiff`` (similarity method: F = mu F_model(stiff x / mu))."""
@@ -111,7 +146,9 @@ def tyre_forces(
 # ------------------------------------------------------------------ one wheel
 
 
-def _true_load(Fz_set, V, tyre: TyreInfo, eff, rng, dt) -> np.ndarray:
+def _true_load(
+    Fz_set: F64, V: F64, tyre: TyreInfo, eff: Effects, rng: np.random.Generator, dt: float
+) -> np.ndarray:
     """The load the tyre carries: the set load, with ``load_ripple`` at wheel frequency."""
     if "load_ripple" not in eff:
         return Fz_set.copy()
@@ -120,7 +157,9 @@ def _true_load(Fz_set, V, tyre: TyreInfo, eff, rng, dt) -> np.ndarray:
     return Fz_set * (1.0 + lr["amplitude"] * np.sin(phase))
 
 
-def _contact_slips(wp: WheelProgramme, Fz, FN, eff, dt) -> tuple[np.ndarray, np.ndarray]:
+def _contact_slips(
+    wp: WheelProgramme, Fz: F64, FN: float, eff: Effects, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Slips the contact patch has: ``relaxation`` lags them in travelled distance."""
     if "relaxation" not in eff:
         return wp.kappa.copy(), wp.alpha.copy()
@@ -131,7 +170,9 @@ def _contact_slips(wp: WheelProgramme, Fz, FN, eff, dt) -> tuple[np.ndarray, np.
     return kappa, alpha
 
 
-def _static_friction(prog, tyre, V, kappa, alpha, eff) -> tuple[np.ndarray, float | None]:
+def _static_friction(
+    prog: Programme, tyre: TyreInfo, V: F64, kappa: F64, alpha: F64, eff: Effects
+) -> tuple[np.ndarray, float | None]:
     """Friction scales that do not depend on the thermal state: speed law and belt step."""
     n = len(V)
     mu = np.ones(n)
@@ -150,7 +191,17 @@ def _static_friction(prog, tyre, V, kappa, alpha, eff) -> tuple[np.ndarray, floa
     return mu, step_at
 
 
-def _thermal_fixed_point(model, prog, wp, tyre, Fz, kappa, alpha, mu_static, eff) -> dict:
+def _thermal_fixed_point(
+    model: TireModel,
+    prog: Programme,
+    wp: WheelProgramme,
+    tyre: TyreInfo,
+    Fz: F64,
+    kappa: F64,
+    alpha: F64,
+    mu_static: F64,
+    eff: Effects,
+) -> dict[str, Any]:
     """Forces and hidden states consistent with each other: power -> nodes -> grip/pressure
     -> forces, iterated (Picard) until the power changes by < 0.1 % of its peak."""
     dt = 1.0 / prog.rate_hz
@@ -203,7 +254,9 @@ def _thermal_fixed_point(model, prog, wp, tyre, Fz, kappa, alpha, mu_static, eff
     }
 
 
-def _wear_factor(P, Ts, T_amb, dt, FNOMIN, wp: dict) -> np.ndarray:
+def _wear_factor(
+    P: F64, Ts: F64, T_amb: F64, dt: float, FNOMIN: float, wp: Mapping[str, float]
+) -> np.ndarray:
     """Grip left after abrasion: the worn depth grows with the frictional power, faster on a
     hot tread (1 + abrasion_per_K (Ts - T_amb)); grip falls linearly with it (floor 0.2)."""
     rate = P * (1.0 + wp["abrasion_per_K"] * np.maximum(Ts - T_amb, 0.0))
@@ -211,7 +264,14 @@ def _wear_factor(P, Ts, T_amb, dt, FNOMIN, wp: dict) -> np.ndarray:
     return np.maximum(1.0 - wp["loss_per_km"] * worn / FNOMIN / 1000.0, 0.2)
 
 
-def _force_effects(forces, Fz, gamma, alpha, t_rel, eff) -> dict:
+def _force_effects(
+    forces: Mapping[str, F64],
+    Fz: F64,
+    gamma: F64,
+    alpha: F64,
+    t_rel: npt.NDArray[np.floating[Any]],
+    eff: Effects,
+) -> dict[str, F64]:
     """What the load cell reports: the hub forces with ``offset`` and ``camber`` added,
     ``delay``-ed against the slip channel."""
     Fy_extra, Fx_extra, Mz_extra = np.zeros_like(Fz), np.zeros_like(Fz), np.zeros_like(Fz)
@@ -238,7 +298,16 @@ def _force_effects(forces, Fz, gamma, alpha, t_rel, eff) -> dict:
     return true_forces
 
 
-def _sensors(wp, Fz, hid, meas, tyre, eff, rng, dt) -> dict:
+def _sensors(
+    wp: WheelProgramme,
+    Fz: F64,
+    hid: Mapping[str, Any],
+    meas: Mapping[str, F64],
+    tyre: TyreInfo,
+    eff: Effects,
+    rng: np.random.Generator,
+    dt: float,
+) -> dict[str, F64]:
     """What the rig's sensors record: commanded slips, load cell, IR tread temperature
     (first order, IR_SENSOR_TAU_S), gauge pressure, belt speed, forces; plus noise."""
     n = len(Fz)
@@ -271,11 +340,11 @@ def _simulate_wheel(
     tyre: TyreInfo,
     prog: Programme,
     wp: WheelProgramme,
-    eff: dict[str, dict],
+    eff: Effects,
     omit: set[str],
     rng: np.random.Generator,
     trace_hz: float,
-) -> tuple[WheelSeries, dict]:
+) -> tuple[WheelSeries, dict[str, Any]]:
     dt = 1.0 / prog.rate_hz
     n = len(wp.Fz)
     t_rel = np.arange(n) * dt
@@ -285,8 +354,7 @@ def _simulate_wheel(
     hid = _thermal_fixed_point(model, prog, wp, tyre, Fz, kappa, alpha, mu_static, eff)
     meas = _force_effects(hid["forces"], Fz, wp.gamma, alpha, t_rel, eff)
     rec = _sensors(wp, Fz, hid, meas, tyre, eff, rng, dt)
-    if "moments" in omit:
-        rec["Mx"] = rec["My"] = rec["Mz"] = None
+    moments = {k: None if "moments" in omit else rec[k] for k in ("Mx", "My", "Mz")}
     t_ns = EPOCH_NS + np.round(np.arange(n) * (1e9 / prog.rate_hz)).astype(np.int64)
     series = WheelSeries(
         prefix=wp.prefix,
@@ -301,9 +369,9 @@ def _simulate_wheel(
         Fx=rec["Fx"],
         Fy=rec["Fy"],
         Fz_meas=rec["Fz_meas"],
-        Mx=rec["Mx"],
-        My=rec["My"],
-        Mz=rec["Mz"],
+        Mx=moments["Mx"],
+        My=moments["My"],
+        Mz=moments["Mz"],
         meta={"t_ns": t_ns, "source": "virtual rig", "programme": prog.name},
     )
     hidden = {**hid, "alpha_eff": alpha, "kappa_eff": kappa, "Fz_true": Fz}
@@ -324,7 +392,7 @@ def _between_runs(prog: Programme) -> float:
     return float(starts[np.argmin(np.abs(starts - mid))] / prog.rate_hz)
 
 
-def _sweep_summary(seg, hidden) -> dict:
+def _sweep_summary(seg: Segment, hidden: Mapping[str, Any]) -> dict[str, Any]:
     """Per sweep: surface temperature rise and grip factor loss (true, hidden)."""
     sl = slice(seg.i0, seg.i1)
     Ts, mu = hidden["T_surface"][sl], hidden["mu_factor"][sl]
@@ -338,7 +406,14 @@ def _sweep_summary(seg, hidden) -> dict:
     return out
 
 
-def _wheel_truth(wp, prog, hidden, E_total, step_at, trace_hz) -> dict:
+def _wheel_truth(
+    wp: WheelProgramme,
+    prog: Programme,
+    hidden: Mapping[str, Any],
+    E_total: float,
+    step_at: float | None,
+    trace_hz: float,
+) -> dict[str, Any]:
     fs = prog.rate_hz
     step = max(1, round(fs / trace_hz)) if trace_hz > 0 else 0
     segments = []
@@ -381,16 +456,16 @@ def _wheel_truth(wp, prog, hidden, E_total, step_at, trace_hz) -> dict:
 
 
 def simulate_session(
-    tir_or_model,
+    tir_or_model: str | os.PathLike[str] | TireModel,
     programme: str,
     *,
-    effects: Mapping[str, Mapping | bool] | Sequence[str] | None = None,
+    effects: EffectsSpec = None,
     omit: Sequence[str] = (),
     seed: int = 0,
     rate_hz: float = 100.0,
-    programme_options: Mapping | None = None,
+    programme_options: Mapping[str, Any] | None = None,
     truth_trace_hz: float = 2.0,
-) -> tuple[list[WheelSeries], dict]:
+) -> tuple[list[WheelSeries], dict[str, Any]]:
     """Run ``programme`` on the virtual rig with the tyre of ``tir_or_model``.
 
     Parameters
@@ -454,7 +529,7 @@ def simulate_session(
     return wheels, truth
 
 
-def _concealed(eff: dict, omit: set[str]) -> list[str]:
+def _concealed(eff: Effects, omit: set[str]) -> list[str]:
     """Effects whose driving channel is not in the bag."""
     out = []
     if "heating" in eff and "temperature" in omit:
@@ -477,10 +552,14 @@ SENSOR_RATES_HZ = {"pressure": 10.0, "temperature": 10.0}  # slow sensors of the
 
 
 def write_session(
-    bag: str | Path, wheels: Sequence[WheelSeries], truth: dict, *, overwrite: bool = False
+    bag: str | Path,
+    wheels: Sequence[WheelSeries],
+    truth: Mapping[str, Any],
+    *,
+    overwrite: bool = False,
 ) -> tuple[Path, Path]:
     """Write the bag (write_recording, MCAP) and its truth file beside it, both atomically."""
-    from ..recording.bag import write_recording
+    from ..recording import write_recording
 
     bag = Path(bag)
     tpath = truth_path(bag)

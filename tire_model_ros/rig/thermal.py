@@ -21,13 +21,18 @@ sweep at 3 deg/s; |mu| 6-7 % lower on the way back; bulk tau 1-5 min).
 from __future__ import annotations
 
 import itertools
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
+from tire_model_ros.vocabulary import STANDARD_ATMOSPHERE_PA
+
+F64 = npt.NDArray[np.float64]
+
 KELVIN = 273.15  # degC -> K
-P_ATM = 101325.0  # Pa, gauge <-> absolute
 
 
 @dataclass(frozen=True)
@@ -47,7 +52,7 @@ class HeatingParams:
     T_ref_C: float = 25.0  # carcass temperature at which stiffness and bulk grip are nominal
 
     @classmethod
-    def from_dict(cls, d: dict) -> HeatingParams:
+    def from_dict(cls, d: Mapping[str, float]) -> HeatingParams:
         known = set(cls.__dataclass_fields__)
         bad = set(d) - known
         if bad:
@@ -56,12 +61,24 @@ class HeatingParams:
             )
         return cls(**{k: float(v) for k, v in d.items()})
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, float]:
         return asdict(self)
 
 
 @njit(cache=True)
-def _integrate(P_per_N, T_amb, dt, Ts0, Tb0, Tg0, k_s, tau_s, k_b, tau_b, tau_g):
+def _integrate(
+    P_per_N: F64,
+    T_amb: F64,
+    dt: float,
+    Ts0: float,
+    Tb0: float,
+    Tg0: float,
+    k_s: float,
+    tau_s: float,
+    k_b: float,
+    tau_b: float,
+    tau_g: float,
+) -> tuple[F64, F64, F64]:
     """Explicit Euler of the three nodes; returns surface, carcass and gas temperatures."""
     n = P_per_N.shape[0]
     Ts = np.empty(n)
@@ -100,7 +117,7 @@ def integrate_nodes(
     )
 
 
-def frictional_power(Fx, Fy, Vx, kappa, alpha) -> np.ndarray:
+def frictional_power(Fx: F64, Fy: F64, Vx: F64, kappa: F64, alpha: F64) -> F64:
     """P_fric = |Fx Vx kappa| + |Fy Vx tan(alpha)| [W] (PHYSICS.md)."""
     return np.abs(Fx * Vx * kappa) + np.abs(Fy * Vx * np.tan(alpha))
 
@@ -134,5 +151,5 @@ def gas_law_pressure(p_set_gauge: np.ndarray, Tg: np.ndarray, run: np.ndarray) -
     bounds = [*starts.tolist(), len(run)]
     for a, b in itertools.pairwise(bounds):
         T0[a:b] = Tg[a]
-    p_abs = (p_set_gauge + P_ATM) * (Tg + KELVIN) / (T0 + KELVIN)
-    return p_abs - P_ATM
+    p_abs = (p_set_gauge + STANDARD_ATMOSPHERE_PA) * (Tg + KELVIN) / (T0 + KELVIN)
+    return p_abs - STANDARD_ATMOSPHERE_PA

@@ -12,10 +12,18 @@ The car is scaled from the tyre so it suits any .tir: static wheel load ~0.8 FNO
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .programmes import CAR_PREFIXES, DEG, G_ACC, Programme, Segment, TyreInfo, WheelProgramme
+
+if TYPE_CHECKING:
+    from tire_model_ros.model import TireModel
+
+F64 = npt.NDArray[np.float64]
 
 # (name, duration [s], ax [g], ay [g]); ay > 0 = left turn (ISO y to the left)
 LAP = (
@@ -38,9 +46,11 @@ LAP = (
 BLEND_S = 0.6
 
 
-def _lap_profile(fs: float, laps: int):
+def _lap_profile(fs: float, laps: int) -> tuple[F64, F64, list[tuple[int, int, str, int]]]:
     """Samples of ax, ay [m/s^2] with cosine blends, and segment boundaries."""
-    ax_parts, ay_parts, bounds = [], [], []
+    ax_parts: list[F64] = []
+    ay_parts: list[F64] = []
+    bounds: list[tuple[int, int, str, int]] = []
     prev = (0.0, 0.0)
     i = 0
     for lap in range(laps):
@@ -57,7 +67,7 @@ def _lap_profile(fs: float, laps: int):
     return np.concatenate(ax_parts), np.concatenate(ay_parts), bounds
 
 
-def build_track(tyre: TyreInfo, rate_hz: float, opt: dict) -> Programme:
+def build_track(tyre: TyreInfo, rate_hz: float, opt: Mapping[str, Any]) -> Programme:
     """Loads, speeds and force demands of the four wheels; slips are filled by the session
     (``WheelProgramme.kappa/alpha`` hold the *demanded* Fx/Fy until ``resolve_slips``)."""
     fs = rate_hz
@@ -130,7 +140,7 @@ def build_track(tyre: TyreInfo, rate_hz: float, opt: dict) -> Programme:
 
 
 def invert_pure(
-    model,
+    model: TireModel,
     Fz: np.ndarray,
     demand: np.ndarray,
     Vx: np.ndarray,

@@ -44,7 +44,8 @@ def read_double(data: bytes, index: int) -> float | None:
     off = _payload(end) + 8 * index
     if off + 8 > len(data):
         return None
-    return struct.unpack_from("<d", data, off)[0]
+    value: float = struct.unpack_from("<d", data, off)[0]
+    return value
 
 
 def read_vector(data: bytes) -> tuple[int, float, float, float] | None:
@@ -62,7 +63,7 @@ def read_vector(data: bytes) -> tuple[int, float, float, float] | None:
 def read_stamp(data: bytes) -> float:
     """header.stamp [s] of a message whose header ``read_vector`` accepted."""
     sec, nanosec = struct.unpack_from("<iI", data, 4)
-    return sec + 1e-9 * nanosec
+    return float(sec + 1e-9 * nanosec)
 
 
 def wrench_like(data: bytes, end: int, values: tuple[float, ...]) -> bytes:

@@ -12,13 +12,14 @@ import os
 import signal
 import time
 from collections.abc import Callable, Mapping, Sequence
+from types import FrameType
 
 import numpy as np
 
-from tire_model_ros.recording import cdr
-from tire_model_ros.recording.bag import CHANNEL_TYPES, BagWriter
-from tire_model_ros.recording.ros_types import msg_class
-from tire_model_ros.teardown import deadline
+from tire_model_ros.recording import BagWriter, cdr
+from tire_model_ros.ros.msg_types import msg_class
+from tire_model_ros.ros.teardown import deadline
+from tire_model_ros.vocabulary import CHANNEL_TYPES, FORCES
 
 
 def resolve_topics(topics: Sequence[str] = (), wheels: Sequence[str] = ()) -> dict[str, str]:
@@ -27,7 +28,7 @@ def resolve_topics(topics: Sequence[str] = (), wheels: Sequence[str] = ()) -> di
     gives the type explicitly. A wheel prefix P records ``P/forces``."""
     out: dict[str, str] = {}
     for prefix in wheels:
-        out[f"{prefix.rstrip('/')}/forces"] = CHANNEL_TYPES["forces"]
+        out[f"{prefix.rstrip('/')}/{FORCES}"] = CHANNEL_TYPES[FORCES]
     for spec in topics:
         topic, _, msgtype = spec.partition(":")
         if not msgtype:
@@ -55,7 +56,7 @@ def _stamp_ns(data: bytes, fallback_ns: int) -> int:
 
 
 def record(
-    out: str | os.PathLike,
+    out: str | os.PathLike[str],
     topics: Mapping[str, str],
     *,
     duration_s: float | None = None,
@@ -87,7 +88,7 @@ def record(
             raise ValueError(f"topic {topic}: {exc}") from None
     stop = {"flag": False}
 
-    def on_signal(signum, _frame) -> None:
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
         stop["flag"] = True
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}

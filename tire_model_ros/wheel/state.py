@@ -26,8 +26,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from tire_model_ros.model.states import EffectState
+
+if TYPE_CHECKING:
+    from tire_model_ros.model import TireModel
 
 ABSOLUTE_ZERO_DEGC = -273.15
 
@@ -146,7 +150,7 @@ class WheelState:
         alpha: float,
         gamma: float,
         now: float,
-        model: object,
+        model: TireModel,
         nominal: Nominal,
         timeouts: Mapping[str, float],
         limits: bool,

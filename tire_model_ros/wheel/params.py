@@ -40,11 +40,9 @@ GLOBAL_PARAMS = (
     "rt_priority",
     "cpus",
 )
-INPUTS = ("load", "pressure", "temperature", "velocity")
 #: Default staleness timeouts [s]; 0 disables the check (value held for ever).
 DEFAULT_TIMEOUTS = {"load": 1.0, "pressure": 10.0, "temperature": 10.0, "velocity": 1.0}
 MISSING_LOAD_POLICIES = ("nominal", "skip")
-STANDARD_ATMOSPHERE_PA = 101325.0
 
 _KEY_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(\.[A-Za-z][A-Za-z0-9_]*)*$")
 

@@ -1,9 +1,13 @@
-"""ROS 2 glue of ``tire_model_node``: topics, parameters, services, diagnostics.
+"""``tire_model_node``: streams each wheel's forces from the extended Magic Formula (ROS glue:
+topics, parameters, services, diagnostics).
+
+Console scripts ``tire-model-node`` and ``tire_model_node`` (``ros2 run tire_model_ros
+tire_model_node``), or ``python -m tire_model_ros.ros.node``.
 
 Topics per wheel prefix P (INTERFACE.md): ``P/slip``, ``P/load``, ``P/pressure``,
 ``P/temperature``, ``P/velocity`` in; ``P/forces`` out, one per slip message with its header.
-Input handling and counters: :mod:`tire_model_ros.node.wheel`. Parameter names:
-:mod:`tire_model_ros.node.params`.
+Input handling and counters (no ROS): :mod:`tire_model_ros.wheel.state`. Parameter names:
+:mod:`tire_model_ros.wheel.params`.
 
 Parameters
 ----------
@@ -54,14 +58,16 @@ import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from operator import attrgetter
 from pathlib import Path
+from typing import Any
 
 import rclpy
 import rclpy.exceptions
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import TwistStamped, Vector3Stamped, WrenchStamped
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
@@ -69,29 +75,42 @@ from rcl_interfaces.msg import (
     ParameterType,
     SetParametersResult,
 )
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import FluidPressure, Temperature
 from std_srvs.srv import Trigger
 
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects, EffectState
-from tire_model_ros.node import cdr_fast, realtime
-from tire_model_ros.node import params as pn
-from tire_model_ros.node.wheel import Nominal, Throttle, WheelState
-from tire_model_ros.teardown import deadline
+from tire_model_ros.recording import cdr
+from tire_model_ros.ros import cdr_fast, realtime
+from tire_model_ros.ros.msg_types import msg_class
+from tire_model_ros.ros.teardown import deadline
+from tire_model_ros.vocabulary import (
+    CHANNEL_TYPES,
+    FORCES,
+    INPUT_FIELDS,
+    NODE_INPUTS,
+    STANDARD_ATMOSPHERE_PA,
+)
+from tire_model_ros.wheel import params as pn
+from tire_model_ros.wheel.state import Nominal, Throttle, WheelState
 
 NODE_NAME = "tire_model_node"
-#: Input topic -> (type, index of its float64 after the header, field for the slow path).
-INPUT_TOPICS = {
-    "load": (WrenchStamped, 2, "wrench.force.z"),
-    "pressure": (FluidPressure, 0, "fluid_pressure"),
-    "temperature": (Temperature, 0, "temperature"),
-    "velocity": (TwistStamped, 0, "twist.linear.x"),
-}
+
+
+def _input_topic(channel: str) -> tuple[type, int, str]:
+    """(message class, index of its float64 after the header, field for the slow path)."""
+    msgtype = CHANNEL_TYPES[channel]
+    field = INPUT_FIELDS[channel]
+    return msg_class(msgtype), cdr.LAYOUTS[msgtype].index(field), field
+
+
+#: Input channel -> what the node reads from it (INTERFACE.md, :mod:`tire_model_ros.vocabulary`).
+INPUT_TOPICS = {channel: _input_topic(channel) for channel in NODE_INPUTS}
 
 
 @dataclass(frozen=True)
@@ -130,14 +149,14 @@ def _fail(reason: str) -> SetParametersResult:
     return SetParametersResult(successful=False, reason=reason)
 
 
-def _descriptor(description: str, *, read_only: bool = False, **kw) -> ParameterDescriptor:
+def _descriptor(description: str, *, read_only: bool = False, **kw: Any) -> ParameterDescriptor:
     return ParameterDescriptor(description=description, read_only=read_only, **kw)
 
 
 class TireModelNode(Node):
     """Streams ``P/forces`` for every wheel prefix P; see the module docstring."""
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         self._syncing = False  # re-declaring coefficients after a file change: no rebuild
         self._redeclare: set[str] = set()
@@ -191,7 +210,7 @@ class TireModelNode(Node):
         )
         self.declare_parameter(
             "ambient_pressure",
-            pn.STANDARD_ATMOSPHERE_PA,
+            STANDARD_ATMOSPHERE_PA,
             _descriptor(
                 "ambient pressure [Pa] for pressure_is_absolute",
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=2e5)],
@@ -236,7 +255,9 @@ class TireModelNode(Node):
             _descriptor("CPUs the node's threads may run on; unset = all", read_only=True),
         )
 
-    def _declare_coefficients(self, slot: str, model: TireModel, overrides: bool) -> dict:
+    def _declare_coefficients(
+        self, slot: str, model: TireModel, overrides: bool
+    ) -> dict[str, float]:
         """Declare one parameter per coefficient; returns values that overrides changed."""
         prefix = f"{slot}." if slot else ""
         changed: dict[str, float] = {}
@@ -303,7 +324,7 @@ class TireModelNode(Node):
         if policy not in pn.MISSING_LOAD_POLICIES:
             raise ValueError(f"missing_load: {policy!r} is not one of {pn.MISSING_LOAD_POLICIES}")
         self.skip_without_load = policy == "skip"
-        self.timeouts = {k: float(g(f"timeout.{k}").value) for k in pn.INPUTS}
+        self.timeouts = {k: float(g(f"timeout.{k}").value) for k in NODE_INPUTS}
 
     # ---------------------------------------------------------------- parameters: change
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
@@ -327,8 +348,8 @@ class TireModelNode(Node):
         self.slots = slots
         for w in self.wheels:
             w.slot = w.key if w.key in slots else ""
-        for name, value in settings.items():
-            setattr(self, name, value)
+        for name, setting in settings.items():
+            setattr(self, name, setting)
         if effects:
             self._set_effects(effects[-1])
             self.reloads += 1
@@ -415,7 +436,7 @@ class TireModelNode(Node):
         finally:
             self._syncing = False
 
-    def _on_reload(self, request: Trigger.Request, response: Trigger.Response):
+    def _on_reload(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         names = ["tir_file"] + [f"{k}.tir_file" for k in self.slots if k]
         if self.get_parameter("effects_file").value:
             names.append("effects_file")
@@ -436,7 +457,7 @@ class TireModelNode(Node):
             depth=depth, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST
         )
         for w in self.wheels:
-            pub = self.create_publisher(WrenchStamped, f"{w.prefix}/forces", qos)
+            pub = self.create_publisher(WrenchStamped, f"{w.prefix}/{FORCES}", qos)
             self.create_subscription(
                 Vector3Stamped, f"{w.prefix}/slip", self._slip_cb(w, pub), qos, raw=True
             )
@@ -445,7 +466,7 @@ class TireModelNode(Node):
                     msg_type, f"{w.prefix}/{name}", self._input_cb(w, name), qos, raw=True
                 )
 
-    def _slip_cb(self, w: WheelState, pub):
+    def _slip_cb(self, w: WheelState, pub: Publisher) -> Callable[[bytes], None]:
         def on_slip(data: bytes) -> None:
             now = time.monotonic()
             parsed = cdr_fast.read_vector(data)
@@ -476,7 +497,7 @@ class TireModelNode(Node):
 
         return on_slip
 
-    def _input_cb(self, w: WheelState, name: str):
+    def _input_cb(self, w: WheelState, name: str) -> Callable[[bytes], None]:
         msg_type, index, field = INPUT_TOPICS[name]
         setter = getattr(w, f"set_{name}")
         absolute = name == "pressure"
@@ -555,7 +576,7 @@ class TireModelNode(Node):
         parts = [f"{k} +{delta[k]}" for k in lost + warn]
         st.message = "; ".join(parts) if parts else "ok"
         values = {"tir_file": self.slots[w.slot].path, **{k: str(v) for k, v in counts.items()}}
-        for name in pn.INPUTS:
+        for name in NODE_INPUTS:
             ch = getattr(w, name)
             values[f"{name}.value"] = "never received" if ch.value is None else repr(ch.value)
             values[f"{name}.age_s"] = "" if ch.value is None else f"{now - ch.t_rx:.3f}"
@@ -568,7 +589,7 @@ class TireModelNode(Node):
         return st
 
 
-def make_executor(kind: str | None = None):
+def make_executor(kind: str | None = None) -> Executor:
     """EventsExecutor (default, ~2.5x the callback rate here) or SingleThreadedExecutor.
 
     ``TIRE_MODEL_EXECUTOR=single`` selects the single-threaded one (for comparisons).
@@ -581,7 +602,7 @@ def make_executor(kind: str | None = None):
     return EventsExecutor()
 
 
-def spin(executor) -> None:
+def spin(executor: Executor) -> None:
     """Spin until the context shuts down (SIGINT/SIGTERM: rclpy's handlers shut it down).
 
     EventsExecutor.spin() does not return on that shutdown here (it keeps a core busy), so it
@@ -609,6 +630,7 @@ def tune_process(node: Node) -> None:
 
 
 def main(args: list[str] | None = None) -> int:
+    """Console entry point: run the node until SIGINT/SIGTERM; the exit status."""
     rclpy.init(args=args)
     node = None
     code = 0
@@ -634,3 +656,7 @@ def main(args: list[str] | None = None) -> int:
                 node.destroy_node()
             rclpy.try_shutdown()
     return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

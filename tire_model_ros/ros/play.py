@@ -14,13 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tire_model_ros.recording import cdr
-from tire_model_ros.recording.bag import CHANNEL_TYPES, OPTIONAL, RawBag, RecordingError, read_raw
-from tire_model_ros.recording.ros_types import msg_class
-from tire_model_ros.teardown import deadline as teardown_deadline
+from tire_model_ros.recording import RawBag, RecordingError, cdr, read_raw
+from tire_model_ros.ros.msg_types import msg_class
+from tire_model_ros.ros.teardown import deadline as teardown_deadline
+from tire_model_ros.vocabulary import CHANNEL_TYPES, NODE_INPUTS, NS_PER_S
 
-INPUTS = ("load", *OPTIONAL, "slip")  # slip last: at equal stamps the inputs come first
-_NS = 1_000_000_000
+INPUTS = (*NODE_INPUTS, "slip")  # slip last: at equal stamps the inputs come first
 
 
 @dataclass
@@ -80,8 +79,10 @@ def schedule(bag: RawBag) -> Schedule:
         if len(raw) and (np.any(raw.lens < 12) or np.any(raw.buf[raw.starts + 1] != 1)):
             raise RecordingError(f"{bag.path}: topic {topic}: messages are not CDR_LE stamped")
         stamps = cdr.header_stamps(raw.buf, raw.starts)
-        rank = _channel_rank(topic) * 2 + (1 if topic.endswith("/slip") else 0)
-        parts.append((np.full(len(raw), i), np.arange(len(raw)), stamps, np.full(len(raw), rank)))
+        order_rank = _channel_rank(topic) * 2 + (1 if topic.endswith("/slip") else 0)
+        parts.append(
+            (np.full(len(raw), i), np.arange(len(raw)), stamps, np.full(len(raw), order_rank))
+        )
     if not parts:
         raise RecordingError(f"{bag.path}: nothing to play")
     t_idx, m_idx, stamp, rank = (np.concatenate(x) for x in zip(*parts, strict=True))
@@ -97,7 +98,7 @@ def schedule(bag: RawBag) -> Schedule:
 
 
 def load_schedule(
-    path: str | os.PathLike, wheels: Sequence[str] | None = None, measured: bool = False
+    path: str | os.PathLike[str], wheels: Sequence[str] | None = None, measured: bool = False
 ) -> Schedule:
     """Read the bag's topics to play and order them."""
     listing = read_raw(path, lambda _t: False)  # topic table only
@@ -108,7 +109,7 @@ def load_schedule(
 
 
 def play(
-    path: str | os.PathLike,
+    path: str | os.PathLike[str],
     *,
     rate: float = 1.0,
     loop: bool = False,
@@ -158,7 +159,7 @@ def play(
             f"(rate {'max' if rate == 0 else rate})"
         )
         raw = [sched.raw_of(i) for i in range(len(sched))]
-        rel_s = (sched.stamp_ns - sched.stamp_ns[0]) / _NS
+        rel_s = (sched.stamp_ns - sched.stamp_ns[0]) / NS_PER_S
         t_idx = sched.topic_idx.tolist()
         while True:
             start = time.monotonic()
