@@ -224,19 +224,26 @@ def _absorb_short_runs(code: npt.NDArray[np.integer], min_len: int) -> Ints:
 
 
 def _drop_following(
-    states: dict[str, npt.NDArray[np.int8]], rates: Mapping[str, Floats], min_len: int
+    states: dict[str, npt.NDArray[np.int8]], rates: Mapping[str, Floats], dt: float
 ) -> None:
     """Zero the driver states that only follow a swept slip (in place).
 
-    A slip moving much slower than the other (in units of ``SLIP_SCALE``) follows it; a
-    condition moving while a slip is swept follows the forces (rig compliance, load control).
+    Where both slips move, a slip whose change over that stretch is less than
+    ``FOLLOW_SHARE`` of the other's (in units of ``SLIP_SCALE``) follows it (a TTC cornering
+    run's slip ratio wanders with the slip angle); two slips swept together (a warm-up's
+    sines) both stay. A condition moving while a slip is swept follows the forces (rig
+    compliance, load control).
     """
     if all(k in states for k in SLIPS):
-        speed = {k: np.abs(rates[k]) / SLIP_SCALE[k] for k in SLIPS}
-        both = (states["kappa"] != 0) & (states["alpha"] != 0)
-        for k, other in (("kappa", "alpha"), ("alpha", "kappa")):
-            follows = both & (speed[k] < FOLLOW_SHARE * speed[other])
-            states[k] = _absorb_short_runs(np.where(follows, 0, states[k]), min_len).astype(np.int8)
+        both = ((states["kappa"] != 0) & (states["alpha"] != 0)).astype(np.int8)
+        starts, ends = _runs(both)
+        for s, e in zip(starts, ends, strict=True):
+            if not both[s]:
+                continue
+            change = {k: abs(float(np.sum(rates[k][s:e]))) * dt / SLIP_SCALE[k] for k in SLIPS}
+            for k, other in (("kappa", "alpha"), ("alpha", "kappa")):
+                if change[k] < FOLLOW_SHARE * change[other]:
+                    states[k][s:e] = 0
     swept = np.zeros(len(next(iter(states.values()))), dtype=bool)
     for k in SLIPS:
         if k in states:
@@ -326,7 +333,7 @@ def split_segments(
         states[k], rates[k] = _direction_state(
             getattr(series, k), grid, DRIVERS[k], max(3, grid.min_len // 3)
         )
-    _drop_following(states, rates, max(3, grid.min_len // 3))
+    _drop_following(states, rates, dt)
     slips = [k for k in names if k in SLIPS]
     conditions = [k for k in names if k not in SLIPS]
     # Slip sweeps first; then, inside each stretch where the slips are held, the condition
