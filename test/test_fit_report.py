@@ -5,6 +5,7 @@ start model already explains the data written with a note (exit 0) instead of re
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 
 import numpy as np
@@ -49,9 +50,12 @@ def test_measured_against_model_per_condition(heated):
     import matplotlib.pyplot as plt
 
     fig = figures(heated)["fit_Fy.png"]
-    titles = sorted(ax.get_title() for ax in fig.axes if ax.axison)
+    titles = sorted(ax.get_title().split("\n") for ax in fig.axes if ax.axison)
     # one panel per inclination block (one pressure), one curve per load level
-    assert titles == [f"p 260 kPa, gamma {g} deg" for g in ("0.0", "2.0", "4.0")], titles
+    assert [t[0] for t in titles] == [f"p 260 kPa, gamma {g} deg" for g in ("0.0", "2.0", "4.0")]
+    for t in titles:  # each panel's own figure: the fit improves every condition
+        m = re.fullmatch(r"Fy rmse ([\d.e+]+) -> ([\d.e+]+) N \(start -> fitted\)", t[1])
+        assert m and float(m[2]) < float(m[1]), t
     for ax in fig.axes:
         if ax.axison:
             labels = [t.get_text() for t in ax.get_legend().get_texts()]

@@ -4,7 +4,8 @@ Figures per channel and per operating condition (load, pressure, inclination: th
 segmentation found in the data; temperature in 10 degC bins), written as markdown and JSON,
 plus PNG plots (matplotlib, Agg backend) as an engineer reads them: each channel against its
 slip, one panel per condition (pressure, inclination, held slip) and one colour per load,
-measured dots and the fitted and start models' curves; held-out sweeps; residuals over time.
+measured dots and the fitted and start models' curves, each panel titled with its RMSE start
+-> fitted; held-out sweeps; residuals over time.
 Every axis carries its unit. Residuals are measured - model everywhere (the diagnosis' sign);
 ``bias`` is their mean. NRMSE = RMSE / (max - min of the measured channel on the same
 samples), as in INTERFACE.md.
@@ -366,12 +367,32 @@ def _panel_title(panel: Panel, slip: str) -> str:
     if p is not None:
         parts.append(f"p {p / 1000:.0f} kPa")
     if gamma is not None:
-        parts.append(f"gamma {math.degrees(gamma):.1f} deg")
+        parts.append(f"gamma {_deg(gamma)} deg")
     if held is not None and abs(held) > (0.005 if other == "kappa" else math.radians(0.3)):
-        parts.append(
-            f"alpha {math.degrees(held):.1f} deg" if other == "alpha" else f"kappa {held:.3f}"
-        )
+        parts.append(f"alpha {_deg(held)} deg" if other == "alpha" else f"kappa {held:.3f}")
     return ", ".join(parts) or "all samples"
+
+
+def _deg(rad: float) -> str:
+    """An angle [rad] in degrees with one decimal, never "-0.0"."""
+    return f"{round(math.degrees(rad), 1) + 0.0:.1f}"
+
+
+def _panel_rmse(result: FitResult, c: str, groups: Mapping[float, Members]) -> str:
+    """RMSE of measured - model of channel ``c`` on a panel's samples, start -> fitted model:
+    the improvement per condition, which one cloud of all samples would hide."""
+    rmse = []
+    for name in ("before", "after"):
+        d = np.concatenate(
+            [
+                getattr(result.wheels[w], c)[i]
+                - np.asarray(getattr(result.predictions[name][w], c))[i]
+                for members in groups.values()
+                for w, i in members
+            ]
+        )
+        rmse.append(float(np.sqrt(np.nanmean(d * d))))
+    return f"{c} rmse {_fmt(rmse[0], 3)} -> {_fmt(rmse[1], 3)} {UNIT[c]}"
 
 
 def _curve(
@@ -425,7 +446,8 @@ def _plot_conditions(result: FitResult, c: str) -> Figure:
             x = np.concatenate([getattr(result.wheels[w], slip)[i] for w, i in members])
             y = np.concatenate([getattr(result.wheels[w], c)[i] for w, i in members])
             pick = rng.choice(len(x), min(len(x), MAX_DOTS), replace=False)
-            ax.plot(x[pick] * factor, y[pick], ".", ms=1.5, color=colour, alpha=0.5)
+            # the dots above the curves: the measurement is what the reader checks them on
+            ax.plot(x[pick] * factor, y[pick], ".", ms=2, color=colour, alpha=0.35, zorder=3)
             grid = np.linspace(np.nanmin(x), np.nanmax(x), 121)
             for model, style in ((result.start_model, "--"), (result.model, "-")):
                 f = np.asarray(getattr(_curve(model, result.wheels, members, slip, grid), c))
@@ -437,7 +459,8 @@ def _plot_conditions(result: FitResult, c: str) -> Figure:
                     color=colour,
                     label=f"Fz {fz:.0f} N" if style == "-" else None,
                 )
-        ax.set_title(_panel_title(panel, slip), fontsize=9)
+        rmse = _panel_rmse(result, c, groups[panel])
+        ax.set_title(f"{_panel_title(panel, slip)}\n{rmse} (start -> fitted)", fontsize=9)
         ax.set_xlabel(label)
         ax.set_ylabel(f"{c} [{UNIT[c]}]")
         ax.legend(fontsize=7)
