@@ -323,3 +323,21 @@ def test_csv_with_byte_order_mark(tmp_path):
     (tmp_path / "bad.csv").write_text(text.replace(repr(float(alpha[3])), "oops", 1))
     with pytest.raises(MeasurementError, match=r"bad.csv: line 5: column 'alpha': 'oops'"):
         import_file(tmp_path / "bad.csv")
+
+
+def test_bad_csv_files(tmp_path):
+    head = "t,Fz,kappa,alpha,gamma,Vx,p,Fx,Fy\n"
+    row = "{t},4000,0,{a},0,16.7,2.2e5,0,{fy}\n"
+    rows = [row.format(t=0.01 * i, a=0.001 * i, fy=-50 * i) for i in range(20)]
+    cases = {
+        "noalpha.csv": (head.replace("alpha", "beta") + "".join(rows),
+                        "line 1: missing column(s) alpha"),
+        "time.csv": (head + "".join(rows[:5] + rows[4:]), "line 7: time t = 0.04 s does not"),
+        "nan.csv": (head + "".join(r.rsplit(",", 1)[0] + ",nan\n" for r in rows),
+                    "channel Fy: every value is NaN"),
+        "short.csv": (head + "".join(rows[:3]) + "0.5,4000,0\n", "line 5: column 'alpha' missing"),
+    }  # fmt: skip
+    for name, (text, part) in cases.items():
+        (tmp_path / name).write_text(text)
+        error = _error_of(tmp_path / name)
+        assert part in error, (part, error)
