@@ -219,6 +219,19 @@ def test_mirrored_file_is_warned_about(tmp_path):
     assert "warning: Fy rises with alpha" in r.stderr
 
 
+def test_slip_noise_is_no_sign(tmp_path):
+    """A cornering run's slip ratio is noise around zero: Fx does not follow it, and a slope
+    fitted through noise must not raise a sign warning."""
+    data = ttc_run(n=6000, seed=3)
+    data["SA"][:3000] = 0.0  # straight running: pure longitudinal slip noise
+    src = tmp_path / "long.mat"
+    write_ttc_mat(src, data, TTC_METRIC)
+    rep = import_file(src).report
+    assert not rep.warnings, rep.warnings
+    line = next(ln for ln in rep.lines if ln.startswith("sign check Fx against kappa"))
+    assert "not checked (Fx does not follow kappa near zero slip: slope t = " in line, line
+
+
 TYDEX = """**HEADER
 RELEASE   Release of TYDEX-format          1.3
 MEASID    measurement id.                  KIT_SIDE_test

@@ -44,6 +44,7 @@ CHANNELS = (*INPUTS, *FORCE_CHANNELS, *OPTIONAL_SERIES.values())
 SIGN_ALPHA_RAD = (math.radians(0.3), math.radians(4.0))
 SIGN_KAPPA = (0.005, 0.05)
 MIN_SIGN_SAMPLES = 20
+MIN_SIGN_T = 5.0  # the slope's t statistic below which a sign is not judged
 
 
 class MeasurementError(ValueError):
@@ -151,10 +152,15 @@ def _check_time(cols: Columns, keep: npt.NDArray[np.bool_]) -> None:
         )
 
 
-def _slope(x: Floats, y: Floats) -> float:
-    """Least-squares slope of y on x (with intercept)."""
-    xc = x - x.mean()
-    return float(np.dot(xc, y - y.mean()) / np.dot(xc, xc))
+def _slope(x: Floats, y: Floats) -> tuple[float, float]:
+    """Least-squares slope of y on x (with intercept) and its t statistic (slope / its
+    standard error; about N(0, 1) when y does not follow x)."""
+    xc, yc = x - x.mean(), y - y.mean()
+    sxx, syy = float(np.dot(xc, xc)), float(np.dot(yc, yc))
+    slope = float(np.dot(xc, yc)) / sxx
+    r2 = min(slope * slope * sxx / syy, 1.0) if syy > 0 else 1.0
+    t = math.inf if r2 >= 1.0 else abs(slope) * math.sqrt(sxx * (len(x) - 2) / (syy * (1 - r2)))
+    return slope, t
 
 
 @dataclass(frozen=True)
@@ -185,7 +191,12 @@ def _sign_check(check: SignCheck, s: WheelSeries) -> tuple[str, str | None]:
     near = pure & (np.abs(x) > window[0]) & (np.abs(x) < window[1]) & np.isfinite(y)
     if near.sum() < MIN_SIGN_SAMPLES or not (np.any(x[near] > 0) and np.any(x[near] < 0)):
         return f"sign check {check.name}: not checked (no sweep through zero slip)", None
-    slope = _slope(x[near], y[near])
+    slope, t = _slope(x[near], y[near])
+    if t < MIN_SIGN_T:  # slip noise around zero (a cornering run's SL): no slope to judge
+        return (
+            f"sign check {check.name}: not checked ({check.force} does not follow {check.slip} "
+            f"near zero slip: slope t = {t:.1f} on {int(near.sum())} samples)"
+        ), None
     word = "falls" if slope < 0 else "rises"
     line = f"sign check {check.name}: {word} near zero slip on {int(near.sum())} samples"
     if np.sign(slope) == check.expect:
