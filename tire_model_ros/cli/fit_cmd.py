@@ -21,6 +21,7 @@ import dataclasses
 import sys
 from pathlib import Path
 
+from tire_model_ros.cli.bagarg import add_salvage_argument, read_wheels
 from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
 
 HELP = "refit the model from recordings"
@@ -74,6 +75,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     add_lenient_argument(parser)
+    add_salvage_argument(parser)
 
 
 def default_report_dir(output: Path) -> Path:
@@ -100,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
             if p.exists():
                 raise FileExistsError(f"{p}: exists; not overwriting the report (use --force)")
     for bag in args.bags:  # cheap checks first: the model and bag readers load numba kernels
-        if not Path(bag).exists():
+        if not Path(bag).exists() and not args.salvage:  # salvage may find its temp folder
             raise FileNotFoundError(f"{bag}: no such recording")
     if not Path(args.tir).is_file():
         raise FileNotFoundError(f"{args.tir}: no such .tir file")
@@ -108,12 +110,11 @@ def run(args: argparse.Namespace) -> int:
     from tire_model_ros.fit import FitOptions, fit_recording, write_fit_report
     from tire_model_ros.model import write_tir
     from tire_model_ros.model.check import check_model
-    from tire_model_ros.recording import open_recording
 
     start = load_model(args.tir, args.lenient)
     wheels = []
     for bag in args.bags:
-        for prefix, series in open_recording(bag).items():
+        for prefix, series in read_wheels(bag, salvage=args.salvage).items():
             if args.wheel and prefix not in args.wheel:
                 continue
             series.meta = {**(series.meta or {}), "bag": str(bag)}

@@ -1,8 +1,9 @@
 """Open what a user calls a recording: a bag, or a measurement file imported on the fly.
 
-The offline commands (``fit``, ``diagnose``) open their inputs here, so every command takes a
-TTC, TYDEX or CSV file wherever it takes a bag, and the import's report (rows dropped, sign
-checks, warnings) is said the same way everywhere.
+The offline commands (``fit``, ``diagnose`` through ``cli.bagarg.read_wheels``, ``export``)
+open their inputs here, so every command takes a TTC, TYDEX or CSV file wherever it takes a
+bag, and the import's report (rows dropped, sign checks, warnings) is said the same way
+everywhere.
 """
 
 from __future__ import annotations
