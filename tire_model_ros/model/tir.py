@@ -793,12 +793,15 @@ _TEMPERATURE_NOTE = (
 
 
 def _worth_writing(tir: TirData, name: str, value: float) -> bool:
-    """Write a coefficient unless it is a default that only another model version uses.
+    """Write a coefficient unless it is a default that only another model version uses, or
+    the default temperature range (a file without ``[TEMPERATURE_RANGE]`` stays without it).
 
     Leaving those out keeps e.g. MF 6.2 vertical terms out of an MF 6.1 file; reading the file
     back gives the same default, so the round trip stays exact.
     """
     spec = PARAMETERS[name]
+    if spec.section == "TEMPERATURE_RANGE":  # its default is a sanity range, not the file's
+        return name in tir.given or value != spec.default
     if name in tir.given or value != spec.default or not spec.family:
         return True
     own = {6: "5.2", 61: "6.1", 62: "6.2"}.get(tir.fittyp, "")
