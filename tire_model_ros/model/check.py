@@ -8,7 +8,7 @@ NOMTEMP, NOMTEMP + 100 degC, with the limits on (saturation, low-speed model) an
 equations); ``operating_grid`` says how. Every output of ``evaluate(full=False)`` (what ``eval``
 and the node give: forces, moments, slip stiffnesses, friction coefficients, trail) must be
 finite there, and the forces and moments those of a tyre on the ranges the file declares (at
-NOMTEMP: a .tir has no temperature range):
+NOMTEMP, and at TEMPMIN and TEMPMAX when the file has a ``[TEMPERATURE_RANGE]``):
 
     |Fx|, |Fy| <= 10 Fz*          (a friction coefficient of 10 is no tyre)
     |Mx|, |My|, |Mz| <= 10 Fz* R0
@@ -54,6 +54,8 @@ MAX_MOMENT_PER_LOAD_RADIUS = 10.0  # |Mx|, |My|, |Mz| / (Fz* R0) [-]
 _FORCES = ("Fx", "Fy")
 _MOMENTS = ("Mx", "My", "Mz")
 _INPUTS = ("Fz", "kappa", "alpha", "gamma", "Vx", "p", "T")
+# The default [TEMPERATURE_RANGE] (params): a sanity range, not one the file declares.
+_SANITY = {k: PARAMETERS[k].default for k in ("TEMPMIN", "TEMPMAX")}
 _MAX_PROBES = 32  # failing points re-evaluated per coefficient when looking for the cause
 
 
@@ -99,9 +101,10 @@ def operating_grid(params: Mapping[str, float]) -> dict[str, Array]:
 
     Three products: loads x slips x inclinations x speeds at the nominal pressure and
     temperature; loads x slips x pressures, and loads x slips x temperatures, upright at LONGVL.
-    ``bounded`` is 1 where the tyre bounds apply: on the ranges the file declares. A .tir gives
-    no temperature range, so at temperatures other than NOMTEMP only finiteness is asked (the
-    temperature terms are polynomials fitted over a session's span, not beyond it).
+    ``bounded`` is 1 where the tyre bounds apply: on the ranges the file declares. Away from
+    NOMTEMP only finiteness is asked (the temperature terms are polynomials fitted over a
+    session's span, not beyond it), except at the ends of a ``[TEMPERATURE_RANGE]`` the file
+    declares.
     """
     P = params
     fz0 = P["FNOMIN"]
@@ -122,6 +125,11 @@ def operating_grid(params: Mapping[str, float]) -> dict[str, Array]:
         (np.meshgrid(loads, ks, als, [0.0], [v0], pressures, [t0], indexing="ij"), 1.0),
         (np.meshgrid(loads, ks, als, [0.0], [v0], [p0], temperatures, indexing="ij"), 0.0),
     ]
+    declared = [P[k] for k in ("TEMPMIN", "TEMPMAX") if P.get(k, _SANITY[k]) != _SANITY[k]]
+    if declared:
+        blocks.append(
+            (np.meshgrid(loads, ks, als, [0.0], [v0], [p0], declared, indexing="ij"), 1.0)
+        )
     grid = {
         name: np.concatenate([block[k].ravel() for block, _ in blocks])
         for k, name in enumerate(_INPUTS)
@@ -207,7 +215,8 @@ def saturated_rows(params: Mapping[str, float], inputs: Mapping[str, Array]) -> 
     """Rows whose inputs ``evaluate(limits=True)`` changes: outside the file's ranges, a
     negative load (read as 0), or a speed at or below VXLOW (the low-speed model).
 
-    ``inputs`` holds ``Fz, kappa, alpha, gamma, Vx, p`` arrays [N, -, rad, rad, m/s, Pa].
+    ``inputs`` holds ``Fz, kappa, alpha, gamma, Vx, p`` arrays [N, -, rad, rad, m/s, Pa] and
+    optionally ``T`` [degC] (TEMPMIN..TEMPMAX).
     """
     P = params
     ranges = {
@@ -215,9 +224,11 @@ def saturated_rows(params: Mapping[str, float], inputs: Mapping[str, Array]) -> 
         "alpha": (P["ALPMIN"], P["ALPMAX"]),
         "gamma": (P["CAMMIN"], P["CAMMAX"]),
         "p": (P["PRESMIN"], P["PRESMAX"]),
+        "T": (P.get("TEMPMIN", -np.inf), P.get("TEMPMAX", np.inf)),
     }
     counts = {"Fz": int(np.count_nonzero((inputs["Fz"] < 0.0) | (inputs["Fz"] > P["FZMAX"])))}
     for name, (lo, hi) in ranges.items():
-        counts[name] = int(np.count_nonzero((inputs[name] < lo) | (inputs[name] > hi)))
+        if name in inputs:
+            counts[name] = int(np.count_nonzero((inputs[name] < lo) | (inputs[name] > hi)))
     counts["Vx (low-speed model)"] = int(np.count_nonzero(np.abs(inputs["Vx"]) <= P["VXLOW"]))
     return counts

@@ -55,6 +55,8 @@ NAMES: tuple[str, ...] = (
     "PHYP3", "PHYP4", "PECP1", "PECP2", "QDTP1", "QCRP1", "QCRP2", "QBRP1", "QDRP1",
     # temperature
     "TTX1", "TTX2", "TTX3", "TTX4", "TTY1", "TTY2", "TTY3", "TTY4",
+    # temperature range
+    "TEMPMIN", "TEMPMAX",
 )
 
 FITTYP = 0
@@ -298,5 +300,7 @@ TTY1 = 237
 TTY2 = 238
 TTY3 = 239
 TTY4 = 240
-N_COEF = 241
+TEMPMIN = 241
+TEMPMAX = 242
+N_COEF = 243
 # fmt: on

@@ -16,7 +16,8 @@ Defaults policy
 * Input ranges ([*_RANGE] sections) a file leaves out are wide, so that a default never clips a
   plausible input: FZMIN 0 / FZMAX 1e6 N, ALPMIN/ALPMAX -+1.5708 rad, CAMMIN/CAMMAX -+1 rad
   (MFeval's 100 N / 10 kN, -+1.5 rad, -+0.175 rad would clip a truck's load or a motorcycle's
-  camber); KPUMIN/KPUMAX -+1.5 and PRESMIN/PRESMAX 10 kPa / 1 MPa as MFeval.
+  camber); KPUMIN/KPUMAX -+1.5 and PRESMIN/PRESMAX 10 kPa / 1 MPa as MFeval; TEMPMIN/TEMPMAX
+  (INTERFACE.md's ``[TEMPERATURE_RANGE]``) -100 / 300 degC, a physical sanity range.
 * INFLPRES missing -> NOMPRES (the tyre runs at its nominal pressure); see ``tir.read_tir``.
 
 Ranges
@@ -124,6 +125,7 @@ SECTION_ORDER: tuple[str, ...] = (
     "ALIGNING_COEFFICIENTS",
     "TURNSLIP_COEFFICIENTS",
     "TEMPERATURE_COEFFICIENTS",
+    "TEMPERATURE_RANGE",
 )
 
 # Keys whose value is text, with the section a writer puts them in.
@@ -502,6 +504,9 @@ TTY1                   0.0        .     .     Temperature effect on the PKY1 ter
 TTY2                   0.0        .     .     Temperature effect on the PKY2 term (load of peak Kya) [-]
 TTY3                   0.0        .     .     Linear temperature effect on lateral friction muy [-]
 TTY4                   0.0        .     .     Quadratic temperature effect on lateral friction muy [-]
+[TEMPERATURE_RANGE]
+TEMPMIN                -100.0     .     .     Minimum valid tyre temperature [degC]
+TEMPMAX                300.0      .     .     Maximum valid tyre temperature [degC]
 """  # noqa: E501 (a table: one coefficient per line)
 
 
@@ -568,6 +573,7 @@ _ORDERED_PAIRS: tuple[tuple[str, str], ...] = (
     ("KPUMIN", "KPUMAX"),
     ("ALPMIN", "ALPMAX"),
     ("CAMMIN", "CAMMAX"),
+    ("TEMPMIN", "TEMPMAX"),
 )
 
 

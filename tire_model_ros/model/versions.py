@@ -133,6 +133,8 @@ _OPTIONAL: dict[str, tuple[str, ...]] = {
     ),
     # dT is relative to NOMTEMP: terms without their reference temperature mean nothing.
     "TEMPERATURE_COEFFICIENTS": _keys("NOMTEMP TTX1 TTX2 TTX3 TTX4 TTY1 TTY2 TTY3 TTY4"),
+    # a range is its two ends (INTERFACE.md: [TEMPERATURE_RANGE] TEMPMIN, TEMPMAX)
+    "TEMPERATURE_RANGE": _keys("TEMPMIN TEMPMAX"),
 }
 
 VERSIONS: tuple[Version, ...] = (
