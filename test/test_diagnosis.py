@@ -293,7 +293,8 @@ def test_cli_refuses_a_missing_reference_before_diagnosing(tmp_path):
 def test_rare_sweeps_are_stratified_over_all_folds():
     """A stratum with enough rare sweeps (two left per selection fold) gives one at the
     interior condition farthest from the usual one to the final held-out fold, the kinds at
-    different conditions; the pieces of one sweep stay together; a smaller stratum stays in
+    different conditions; a condition visited twice has a visit in each selection fold, the
+    pieces of a condition visited once alternate between them; a smaller stratum stays in
     the selection folds."""
     levels = [(-4, 0), (2, 0), (4, 0), (-2, 0), (-6, 0), (6, 0)]  # pressures, not monotone
     rare: list = [None]
@@ -306,8 +307,11 @@ def test_rare_sweeps_are_stratified_over_all_folds():
     assert {k for k, _ in held} == {"x", "y"} and len(held) == 2
     assert {lv for _, lv in held} == {(-4, 0), (4, 0)}  # interior, farthest from usual
     for j, r in enumerate(rare[:-1]):
-        if r is not None and rare[j + 1] == r:
-            assert folds[j] == folds[j + 1]  # pieces of one sweep share a fold
+        if r is not None and rare[j + 1] == r and folds[j] != 2:
+            assert {folds[j], folds[j + 1]} == {0, 1}  # a condition visited once: split
+    twice = [None, ("y", (-4, 0)), None, ("y", (3, 0)), None, ("y", (-4, 0)), ("y", (-4, 0))]
+    f2 = rare_folds(twice, np.random.default_rng(1))
+    assert f2[1] != f2[5] and f2[5] == f2[6]  # two visits: one in each, a visit kept whole
     for kind in ("x", "y"):
         sel_folds = [f for j, f in folds.items() if rare[j][0] == kind and f != 2]
         assert sel_folds.count(0) >= 2 and sel_folds.count(1) >= 2

@@ -153,3 +153,19 @@ def test_unreadable_effects_file(tmp_path):
             path.write_text(text)
         with pytest.raises(EffectsError, match=path.name):
             Effects.read(path)
+
+
+def test_a_measured_temperature_is_lagged_as_the_diagnosis_lags_it():
+    """T_lag_s: the node feeds the model the measured temperature through the first-order lag
+    the diagnosis fitted (diagnosis.dynamics.first_order from the first sample), sample for
+    sample on uneven stamps."""
+    rng = np.random.default_rng(2)
+    t = np.cumsum(rng.uniform(0.005, 0.03, 300))
+    T = 40.0 + np.cumsum(rng.normal(0.0, 0.5, 300))
+    st = EffectState(WheelEffects(T_lag_s=20.0))
+    got = [
+        st.inputs(float(ti), 0.0, 0.0, 10.0, float(Ti), None, 2.6e5, 25.0)[2]
+        for ti, Ti in zip(t, T, strict=True)
+    ]
+    np.testing.assert_allclose(got, first_order(T, t, 20.0, float(T[0])), rtol=1e-12)
+    assert np.std(got) < 0.5 * np.std(T)  # lagged, not passed through

@@ -19,7 +19,7 @@ from tire_model_ros.fit.sweeps import Segment
 Index = npt.NDArray[np.int64]
 Array = npt.NDArray[np.float64]
 
-BLOCK_S = 15.0  # a continuous run (no pause) is cut into blocks of about this length [s]
+BLOCK_S = 10.0  # a continuous run (no pause) is cut into blocks of about this length [s]
 # Rare sweeps each selection fold keeps before one goes to the final held-out fold: the MF
 # pressure terms are quadratic (two per side), a fit needs two levels off nominal.
 MIN_RARE_PER_FOLD = 2
@@ -101,10 +101,13 @@ def rare_folds(
 
     A rare sweep is a run of blocks of one kind at one condition. Rare sweeps alternate, per
     kind, between the two selection folds, so that every selection fit sees one and predicts
-    another. A stratum (a kind and the conditions it varies) with enough rare sweeps that each
-    selection fold keeps MIN_RARE_PER_FOLD of them also gives one to the final held-out fold:
-    the interior condition farthest from the usual one (the held-out test interpolates, as the
-    fit does, and sees the effect where it is strongest).
+    another; a condition visited again goes to the other fold than its last visit (a corner
+    of the operating range visited twice: one visit in each), and the pieces of a condition
+    visited once alternate (nothing about it could be validated otherwise). A stratum (a kind
+    and the conditions it varies) with enough rare sweeps that each selection fold keeps
+    MIN_RARE_PER_FOLD of them also gives one to the final held-out fold: the interior
+    condition farthest from the usual one (the held-out test interpolates, as the fit does,
+    and sees the effect where it is strongest; the kinds at different conditions).
     """
     runs: list[tuple[str, tuple[int, ...], list[int]]] = []
     last: dict[str, int] = {}  # kind -> its latest run
@@ -131,14 +134,24 @@ def rare_folds(
             held.add(next(k for k in ks if runs[k][1] == far))
             taken.add(far)
     out: dict[int, int] = {}
-    turn: dict[str, int] = {}
-    for k, (kind, _, js) in enumerate(runs):
-        f = turn.setdefault(kind, int(rng.integers(2)))
+    turn: dict[str, int] = {}  # per kind: the fold of its next new condition
+    again: dict[tuple[str, tuple[int, ...]], int] = {}  # a condition seen: its next run's fold
+    visits = {key: sum(1 for r in runs if r[:2] == key) for key in {r[:2] for r in runs}}
+    for k, (kind, cond, js) in enumerate(runs):
         if k in held:
             out.update(dict.fromkeys(js, 2))
             continue
+        if visits[(kind, cond)] == 1 and len(js) > 1:  # one visit: its pieces alternate
+            f = turn.setdefault(kind, int(rng.integers(2)))
+            out.update({j: (f + i) % 2 for i, j in enumerate(js)})
+            continue
+        if (kind, cond) in again:
+            f = again[(kind, cond)]
+        else:
+            f = turn.setdefault(kind, int(rng.integers(2)))
+            turn[kind] = 1 - f
         out.update(dict.fromkeys(js, f))
-        turn[kind] = 1 - f
+        again[(kind, cond)] = 1 - f
     return out
 
 

@@ -26,6 +26,12 @@ from .prepare import Context
 
 MAX_EFFECTS = 5
 OCCAM_MARGIN = 0.02  # held-out RMS within 2 % of the best: the fewer parameters win
+# Conditions the two halves of a session are compared on: load / FNOMIN, pressure / nominal,
+# speed [m/s] and inclination [deg] to these steps; at least MIN_COMMON_ROWS rows of one in
+# each half, and MIN_COMMON_SHARE of the rows in such conditions, or no comparison is made.
+CONDITION_STEPS = {"Fz": 0.1, "p": 0.05, "V": 2.0, "gamma_deg": 0.5}
+MIN_COMMON_ROWS = 20
+MIN_COMMON_SHARE = 0.2
 
 
 @dataclass
@@ -267,19 +273,24 @@ def _stability(t: Joint, cur: Joint) -> tuple[bool, str]:
     The interleaved folds need no such test: cross-validation already shows that what one
     fold's fit does predicts the other's sweeps. What it cannot show is a change over the
     session that a model of something else stands in for (an offset that follows the heating).
+    The two fits are compared where both halves ran the same conditions (a rig programme runs
+    its conditions in turn: elsewhere a half's fit extrapolates).
     """
     new = [(c, n) for c, n, e in _new(t, cur) if e.stable_in_time]
-    if not new:
-        return True, ""
     pairs = []
     for c, n in new:
         rows = n.ctx.rows["ab"]
         t_mid = float(np.median(n.ctx.wheel.t[rows]))
         halves = [rows[n.ctx.wheel.t[rows] < t_mid], rows[n.ctx.wheel.t[rows] >= t_mid]]
+        common = shared_conditions(n.ctx, halves)
+        if len(common) < MIN_COMMON_SHARE * len(rows):
+            continue  # the halves ran different conditions: what a fit does there is extrapolation
         x0n, x0c = (np.mean([f.x for f in tr.fits], axis=0) for tr in (n, c))
         fn = [fit(n.models, n.ctx, h, x0n, free=n.fits[0].free) for h in halves]
         fc = [fit(c.models, c.ctx, h, x0c) for h in halves]
-        pairs.append((_doing(fn[0], fc[0], n.ctx, rows), _doing(fn[1], fc[1], n.ctx, rows)))
+        pairs.append((_doing(fn[0], fc[0], n.ctx, common), _doing(fn[1], fc[1], n.ctx, common)))
+    if not pairs:
+        return True, ""
     da = np.concatenate([a for a, _ in pairs])
     db = np.concatenate([b for _, b in pairs])
     size, diff = ev.rms(0.5 * (da + db)), ev.rms(da - db)
@@ -290,6 +301,28 @@ def _stability(t: Joint, cur: Joint) -> tuple[bool, str]:
         "constant over the session: fitted on the early and on the late half it does about "
         f"the same to the forces ({diff:.2f} apart for {size:.2f} done)"
     )
+
+
+def shared_conditions(ctx: Context, halves: Sequence[Index]) -> Index:
+    """The rows of ``halves`` whose condition (load, pressure, speed, inclination, rounded to
+    CONDITION_STEPS) both halves ran, each for at least MIN_COMMON_ROWS rows."""
+    w = ctx.wheel
+    p = w.inputs["p"]
+    steps = CONDITION_STEPS
+    key = (
+        np.round(w.x("Fz") / ctx.base["FNOMIN"] / steps["Fz"])
+        + 1e3 * np.round(w.x("V") / steps["V"])
+        + 1e6 * np.round(np.degrees(w.x("gamma")) / steps["gamma_deg"])
+        + 1e9 * (0.0 if p is None else np.round(p / ctx.p_nom / steps["p"]))
+    )
+    counts = [dict(zip(*np.unique(key[h], return_counts=True), strict=True)) for h in halves]
+    both = {
+        k
+        for k in counts[0]
+        if counts[0][k] >= MIN_COMMON_ROWS and counts[1].get(k, 0) >= MIN_COMMON_ROWS
+    }
+    rows = np.concatenate(list(halves))
+    return rows[np.isin(key[rows], list(both))]
 
 
 def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:

@@ -58,6 +58,7 @@ class WheelEffects:
     gas: Node | None = None  # gas temperature [K above T_amb_C] -> gas law -> the p input
     offsets: dict[str, tuple[float, float]] = field(default_factory=dict)  # ch: (N, N at FNOMIN)
     alpha_shift_rad: float = 0.0  # ply-steer as a slip-angle shift, added to alpha
+    T_lag_s: float = 0.0  # a measured temperature is lagged by this first-order node [s]
     speed_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (ln Vs, mu)
     # Fy * (1 - drop gate(rho) max(|alpha| - alpha_c, 0)), rho the relative deflection
     sidewall: tuple[float, float, float] | None = None  # (rho threshold, alpha_c rad, drop/rad)
@@ -74,6 +75,8 @@ class WheelEffects:
             d["offsets"] = {ch: {"N": a, "N_at_FNOMIN": b} for ch, (a, b) in self.offsets.items()}
         if self.alpha_shift_rad:
             d["alpha_shift_rad"] = self.alpha_shift_rad
+        if self.T_lag_s:
+            d["T_lag_s"] = self.T_lag_s
         if self.speed_table is not None:
             d["speed_table"] = {"ln_Vs": list(self.speed_table[0]), "mu": list(self.speed_table[1])}
         if self.sidewall is not None:
@@ -208,6 +211,7 @@ def _wheel(d: object, where: str) -> WheelEffects:
         gas=nodes.get("gas"),
         offsets=_offsets(d.get("offsets", {}), f"{where}.offsets"),
         alpha_shift_rad=_number(d, "alpha_shift_rad", where) if "alpha_shift_rad" in d else 0.0,
+        T_lag_s=_number(d, "T_lag_s", where, 0.0) if "T_lag_s" in d else 0.0,
         speed_table=_table(d["speed_table"], f"{where}.speed_table")
         if "speed_table" in d
         else None,
@@ -261,6 +265,8 @@ class EffectState:
         self.t_last: float | None = None
         self.P_last = 0.0  # frictional power held over the step [W]
         self.y = {"thermal": 0.0, "thermal_slow": self.fx.thermal_slow_start_K, "gas": 0.0}
+        self.T_seen: float | None = None  # the lagged measured temperature (T_lag_s)
+        self.T_last: float | None = None  # the measured temperature held over the step
         self._rho = 1.0  # relative deflection of the current sample
 
     def _step(self, t_s: float) -> None:
@@ -276,6 +282,17 @@ class EffectState:
                 continue
             a = math.exp(-dt / node.tau_s)
             self.y[name] = a * self.y[name] + (1.0 - a) * u
+
+    def _lagged(self, T_C: float, dt: float) -> float:
+        """The measured temperature through the first-order lag T_lag_s (the value held over
+        the step, as the diagnosis integrates it)."""
+        if self.T_seen is None or self.T_last is None:
+            self.T_seen = T_C
+        else:
+            a = math.exp(-dt / self.fx.T_lag_s)
+            self.T_seen = a * self.T_seen + (1.0 - a) * self.T_last
+        self.T_last = T_C
+        return self.T_seen
 
     def idle(self, t_s: float) -> None:
         """A sample with the wheel off the ground: the nodes step to ``t_s`` and cool."""
@@ -305,9 +322,12 @@ class EffectState:
         takes the hidden thermal nodes, or the gas law on ``p_nom`` with the hidden gas node;
         the nominal value when the effects have no such node.
         """
+        dt = 0.0 if self.t_last is None else max(t_s - self.t_last, 0.0)
         self._step(t_s)
         fx = self.fx
         T = T_C
+        if T is not None and fx.T_lag_s > 0.0:
+            T = self._lagged(T, dt)
         if T is None:
             T = self.temperature_C if fx.thermal is not None else T_nom
         p = p_Pa

@@ -81,6 +81,7 @@ class SpeedTable(EffectModel):
 class Wear(EffectModel):
     """Friction falling with the cumulative frictional work, never recovering (wear)."""
 
+    stable_in_time = False  # wear grows as the work does: each half sees its own part of it
     word = "drift"
     label = "friction falls with cumulative frictional work (wear)"
 
@@ -101,6 +102,7 @@ class Wear(EffectModel):
 class Trend(EffectModel):
     """Friction changing linearly in time (a plain trend; also the control of a leak)."""
 
+    stable_in_time = False  # a trend's course over the session need not be a line
     word = "drift"
     label = "friction changes linearly in time (plain trend)"
 

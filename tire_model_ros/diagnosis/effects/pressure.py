@@ -118,6 +118,7 @@ class Leak(EffectModel):
     """Concealed: a slow leak, the pressure falling in time (no link to heat), through the
     file's pressure terms. Its control is a plain friction trend (drift)."""
 
+    stable_in_time = False  # a leak slows as the pressure falls: each half sees its own part
     word = "pressure"
     label = "slow leak: pressure falling linearly in time, file's terms"
     concealed = True

@@ -24,6 +24,7 @@ from .base import Array, EffectModel, Param
 
 TAU_FAST_S = (0.3, 60.0)  # tread surface (PHYSICS.md: seconds)
 TAU_SLOW_S = (30.0, 900.0)  # carcass (PHYSICS.md: 1-5 min; up to 15 for a big tyre)
+TT_ALL = tuple(f"TT{a}{i}" for a in "XY" for i in (1, 2, 3, 4))
 TT_SPAN = 2.0  # bound of a TT coefficient change (dT is about 1 over the convention's rise)
 # A temperature law keeps each factor (stiffness: 1 + TT*1 dT + TT*2 dT^2, grip: TT*3, TT*4)
 # within these over the temperatures it is applied to (PHYSICS.md: grip -10 % per +10 degC at
@@ -67,9 +68,13 @@ class _TTModel(EffectModel):
     def temperature(self, x: Array, ctx: Context) -> Array:
         raise NotImplementedError
 
+    def reference_C(self, ctx: Context) -> float:
+        """The temperature the TT terms are relative to: NOMTEMP."""
+        return ctx.T_amb
+
     def penalty(self, x: Array, ctx: Context) -> Array:
-        T = self.temperature(x, ctx)
-        dT = (np.linspace(float(T.min()), float(T.max()), 9) - ctx.T_amb) / max(ctx.T_amb, 1e-6)
+        T, T0 = self.temperature(x, ctx), self.reference_C(ctx)
+        dT = (np.linspace(float(T.min()), float(T.max()), 9) - T0) / max(T0, 1e-6)
         c = self.coef(x, ctx)
         out = []
         for axis in ("X", "Y"):
@@ -176,7 +181,24 @@ class RecordedThermal(_TTModel):
             "scrambled": "control: the recorded temperature time-scrambled",
             "trend": "control: a temperature ramp in time",
         }[mode]
-        super().__init__(_tt_params(ctx))
+        T = ctx.wheel.inputs["T"]
+        assert T is not None
+        # A file without temperature terms leaves their reference free: the session's median
+        # recorded temperature, so that dT is centred on the data (a quadratic about a
+        # NOMTEMP far below every sample is ill-conditioned and extrapolates wildly).
+        no_terms = all(ctx.base.get(k, 0.0) == 0.0 for k in TT_ALL)
+        self.ref = round(float(np.median(T)), 1) if no_terms else ctx.T_amb
+        lag = Param("tau_T_s", 0.0, 0.0, 120.0, 2.0)  # what the grip feels lags the sensor
+        super().__init__([lag, *_tt_params(ctx)])
+
+    def reference_C(self, ctx: Context) -> float:
+        return self.ref
+
+    def coef(self, x: Array, ctx: Context) -> dict[str, float]:
+        out = super().coef(x, ctx)
+        if self.ref != ctx.T_amb:
+            out["NOMTEMP"] = self.ref
+        return out
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
@@ -192,11 +214,14 @@ class RecordedThermal(_TTModel):
         T = ctx.wheel.inputs["T"]
         assert T is not None
         if self.mode == "scrambled":
-            return T[ctx.wheel.scramble]
-        if self.mode == "trend":
+            T = T[ctx.wheel.scramble]
+        elif self.mode == "trend":
             lo, hi = np.percentile(T, [5, 95])
-            return lo + (hi - lo) * ctx.wheel.t / ctx.t_end
-        return T
+            T = lo + (hi - lo) * ctx.wheel.t / ctx.t_end
+        return first_order(T, ctx.wheel.t, float(x[0]), float(T[0]))
+
+    def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
+        return {"T_lag_s": float(x[0])}
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         inp["T"] = self.temperature(x, ctx)
