@@ -19,6 +19,10 @@ Decisions (one place, documented in the node's docstring too):
   temperature or pressure that is not fresh takes the hidden tread or gas node's value instead
   of the nominal one; the nodes step on the slip messages' header stamps and are driven by the
   frictional power of the wheel's own previous output.
+- A .tir written by ``tire-model fit`` carries the envelope its fitted data covered
+  (``[FIT_ENVELOPE]``: load, pressure, temperature cells): forces are computed all the same
+  outside it (extrapolation), ``outside_envelope`` counts those samples. An unreadable envelope
+  is not checked and ``last_model_error`` says why.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from tire_model_ros.model.envelope import Envelope
 from tire_model_ros.model.states import EffectState
 
 if TYPE_CHECKING:
@@ -119,6 +124,8 @@ class WheelState:
         self.model_errors = 0
         self.last_error = ""
         self.effects: EffectState | None = None  # hidden states of an effects file
+        self.outside_envelope = 0
+        self._envelope: tuple[TireModel | None, Envelope | None] = (None, None)
 
     # -- inputs: each returns None when accepted, else the reason it was rejected ----------
     def set_load(self, Fz: float, now: float) -> str | None:
@@ -211,8 +218,22 @@ class WheelState:
         if not all(math.isfinite(x) for x in out):
             self.output_nonfinite += 1
             return None, [f"output_nonfinite: inputs Fz={Fz} kappa={kappa} alpha={alpha}"]
+        if self._outside(model, Fz, p, T):
+            self.outside_envelope += 1
         self.forces_out += 1
         return out, events
+
+    def _outside(self, model: TireModel, Fz: float, p: float, T: float) -> bool:
+        """Whether the inputs leave the envelope of the model's fitted data (read once per
+        model; a model without one: never)."""
+        if self._envelope[0] is not model:
+            try:
+                self._envelope = (model, Envelope.from_tir(model.tir))
+            except ValueError as exc:
+                self._envelope = (model, None)
+                self.last_error = f"envelope not checked: {exc}"
+        env = self._envelope[1]
+        return env is not None and not env.contains_one(Fz, p, T)
 
     def counters(self) -> dict[str, int]:
         """Cumulative counts for the diagnostics report."""
@@ -224,6 +245,7 @@ class WheelState:
             "no_contact": self.no_contact,
             "output_nonfinite": self.output_nonfinite,
             "model_errors": self.model_errors,
+            "outside_envelope": self.outside_envelope,
         }
         for name in ("load", "pressure", "temperature", "velocity"):
             ch: Channel = getattr(self, name)
