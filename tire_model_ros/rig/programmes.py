@@ -697,10 +697,11 @@ SAFE_PRESSURES = (1.0, 0.85, 1.15)
 SEED_LOAD = 1.2
 SEED_HIGH_LOADS = (1.2, 1.4, 1.6)
 # The tyre of safe_envelope and special_conditions heats on the rig and is held at set
-# temperatures in the simulation by one law (the ``heating`` effect's parameters): a grip
-# window wide enough for -10...80 degC (the seed paper: stiffer cold, less stiff and less grip
-# hot), about 7 % less grip at a rig session's hottest tread.
-SEED_TYRE_HEATING = {"T_opt_C": 15.0, "width_hot_K": 110.0, "width_cold_K": 70.0}
+# temperatures in the simulation by one law (the ``heating`` effect's parameters). The seed
+# paper's tyre: stiffer cold, and from -10 to 80 degC less stiff and less grip as it warms (its
+# grip optimum at or below -10 degC, a window wide enough for the range); about 8 % less grip
+# at a rig session's hottest tread than at 25 degC.
+SEED_TYRE_HEATING = {"T_opt_C": -10.0, "width_hot_K": 150.0, "width_cold_K": 70.0}
 
 
 def _options(

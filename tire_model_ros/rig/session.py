@@ -362,7 +362,7 @@ def _sensors(
     T_sensor = fx.first_order_in_distance(
         hid["T_surface"], np.ones(n), np.full(n, IR_SENSOR_TAU_S), dt
     )  # in time: V = 1
-    set_values = {"T": T_sensor, "p": hid["p_true"]} if wp.T_set is not None else {}
+    set_values = {"T": wp.T_set, "p": hid["p_true"]} if wp.T_set is not None else {}
     load = Fz if eff.get("load_ripple", {}).get("recorded", 1.0) else wp.Fz.copy()
     rec = {
         "kappa": wp.kappa,
