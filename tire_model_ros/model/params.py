@@ -17,7 +17,7 @@ Defaults policy
   plausible input: FZMIN 0 / FZMAX 1e6 N, ALPMIN/ALPMAX -+1.5708 rad, CAMMIN/CAMMAX -+1 rad
   (MFeval's 100 N / 10 kN, -+1.5 rad, -+0.175 rad would clip a truck's load or a motorcycle's
   camber); KPUMIN/KPUMAX -+1.5 and PRESMIN/PRESMAX 10 kPa / 1 MPa as MFeval; TEMPMIN/TEMPMAX
-  (INTERFACE.md's ``[TEMPERATURE_RANGE]``) -100 / 300 degC, a physical sanity range.
+  (INTERFACE.md's ``[TEMPERATURE_RANGE]``) -50 / 150 degC, a physical sanity range.
 * INFLPRES missing -> NOMPRES (the tyre runs at its nominal pressure); see ``tir.read_tir``.
 
 Ranges
@@ -505,8 +505,8 @@ TTY2                   0.0        .     .     Temperature effect on the PKY2 ter
 TTY3                   0.0        .     .     Linear temperature effect on lateral friction muy [-]
 TTY4                   0.0        .     .     Quadratic temperature effect on lateral friction muy [-]
 [TEMPERATURE_RANGE]
-TEMPMIN                -100.0     .     .     Minimum valid tyre temperature [degC]
-TEMPMAX                300.0      .     .     Maximum valid tyre temperature [degC]
+TEMPMIN                -50.0      .     .     Minimum valid tyre temperature [degC]
+TEMPMAX                150.0      .     .     Maximum valid tyre temperature [degC]
 """  # noqa: E501 (a table: one coefficient per line)
 
 

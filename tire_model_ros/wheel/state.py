@@ -22,7 +22,7 @@ Decisions (one place, documented in the node's docstring too):
 - A .tir written by ``tire-model fit`` carries the envelope its fitted data covered
   (``[FIT_ENVELOPE]``: load, pressure, temperature cells): forces are computed all the same
   outside it (extrapolation), ``outside_envelope`` counts those samples. An unreadable envelope
-  is not checked and ``last_model_error`` says why.
+  is not checked and ``last_error`` says why.
 """
 
 from __future__ import annotations
