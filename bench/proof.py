@@ -64,7 +64,8 @@ class Outcome:
     clean_before: float = math.nan  # against the noise-free twin (model error)
     clean_after: float = math.nan
     floor: float = math.nan
-    seconds: float = math.nan  # the diagnose command's own report
+    seconds: float = math.nan  # the diagnose command's own report (wall)
+    cpu: float = math.nan  # ... and its CPU time (one core; the machine may be shared)
     wall: float = math.nan  # generate + diagnose
     error: str = ""
 
@@ -162,8 +163,9 @@ def run_one(gen: str, case: str, seed: int, tmp: Path, out: Path) -> Outcome:
         )
         o.floor = _rss(ref, "heldout_floor")
         for line in proc.stdout.splitlines():
-            if line.startswith("diagnosis of ") and "s):" in line:
-                o.seconds = float(line.rsplit("(", 1)[1].split(" s)")[0])
+            if line.startswith("diagnosis of ") and "CPU):" in line:
+                wall, cpu = line.rsplit("(", 1)[1].split(",")
+                o.seconds, o.cpu = float(wall.split(" s")[0]), float(cpu.split(" s")[0])
     except (RuntimeError, OSError, ValueError, KeyError, subprocess.TimeoutExpired) as exc:
         o.error = f"{type(exc).__name__}: {exc}"
     o.wall = time.monotonic() - start
@@ -184,7 +186,7 @@ def table(outs: list[Outcome]) -> list[str]:
     yes = {None: "-", True: "yes", False: "no"}
     head = (
         "| recording | truth (strongest first) | named | first right | all named | "
-        "held-out before -> after [N] (ratio) | floor | halved | clean before -> after | s |"
+        "held-out before -> after [N] (ratio) | floor | halved | clean before -> after | s (CPU) |"
     )
     lines = [head, "|" + "---|" * 10]
     for o in outs:
@@ -194,7 +196,7 @@ def table(outs: list[Outcome]) -> list[str]:
             f"| {o.case} s{o.seed} | {truth} | {named} | {yes[o.first_right]} | "
             f"{o.found}/{len(o.truth) if o.truth else 0} | {_fmt(o.before)} -> {_fmt(o.after)} "
             f"({_fmt(o.ratio, 2)}) | {_fmt(o.floor)} | {yes[o.halved]} | "
-            f"{_fmt(o.clean_before)} -> {_fmt(o.clean_after)} | {_fmt(o.seconds)} |"
+            f"{_fmt(o.clean_before)} -> {_fmt(o.clean_after)} | {_fmt(o.seconds)} ({_fmt(o.cpu)}) |"
         )
     return lines
 
@@ -205,6 +207,7 @@ def totals(outs: list[Outcome]) -> dict[str, object]:
     nulls = [o for o in outs if o.null]
     can = [o for o in eff if o.attainable]
     times = [o.seconds for o in outs if math.isfinite(o.seconds)]
+    cpus = [o.cpu for o in outs if math.isfinite(o.cpu)]
     return {
         "recordings": len(outs),
         "strongest_first": f"{sum(o.first_right for o in eff)}/{len(eff)}",
@@ -217,6 +220,7 @@ def totals(outs: list[Outcome]) -> dict[str, object]:
         "extra_effects": sum(len(o.extra) for o in eff),
         "errors": sum(bool(o.error) for o in outs),
         "median_diagnosis_s": statistics.median(times) if times else math.nan,
+        "median_diagnosis_cpu_s": statistics.median(cpus) if cpus else math.nan,
     }
 
 

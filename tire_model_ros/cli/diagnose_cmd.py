@@ -137,11 +137,11 @@ def run(args: argparse.Namespace) -> int:
         raise FileExistsError(f"{args.report}: exists and is not empty (use --force)")
     model = load_model(args.tir, args.lenient)
     wheels = read_recording(args.bag, wheels=args.wheel)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     diag = diagnose(list(wheels.values()), model, seed=args.seed)
-    elapsed = time.perf_counter() - t0
+    elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
 
-    print(f"diagnosis of {args.bag} against {args.tir} ({elapsed:.1f} s):")
+    print(f"diagnosis of {args.bag} against {args.tir} ({elapsed:.1f} s, {cpu:.1f} s CPU):")
     for i, e in enumerate(diag.effects, 1):
         tag = " (concealed)" if e.concealed else ""
         print(f"  {i}. {e.name}{tag} on {e.channel}")

@@ -5,9 +5,7 @@
    effective sample size).
 2. *Support*: a model whose physics acts only in one region of the operating range gains
    there at least the least gain selection accepts, and most of its gain comes from there.
-3. *Stability*: a physics of the session does about the same to the forces when fitted on the
-   early and on the late half of it.
-4. *Controls*: it predicts held-out sweeps better than each simpler model of the same mismatch
+3. *Controls*: it predicts held-out sweeps better than each simpler model of the same mismatch
    it names (a memoryless twin, a time-scrambled driver, a plain trend).
 """
 

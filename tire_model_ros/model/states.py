@@ -55,6 +55,7 @@ class WheelEffects:
     thermal: Node | None = None  # tread surface [K above T_amb_C] -> the T input
     thermal_slow: Node | None = None  # carcass [K], added to the tread's -> the T input
     thermal_slow_start_K: float = 0.0  # the carcass node's state at the start (pre-warmed)
+    stiffness_per_K: float = 0.0  # slip stiffness scales by 1 + this * carcass rise [1/K]
     gas: Node | None = None  # gas temperature [K above T_amb_C] -> gas law -> the p input
     offsets: dict[str, tuple[float, float]] = field(default_factory=dict)  # ch: (N, N at FNOMIN)
     alpha_shift_rad: float = 0.0  # ply-steer as a slip-angle shift, added to alpha
@@ -71,6 +72,7 @@ class WheelEffects:
                 d[name] = {"tau_s": node.tau_s, "gain_per_W": node.gain_per_W}
         if self.thermal_slow is not None:
             d["thermal_slow"]["start_K"] = self.thermal_slow_start_K
+            d["thermal_slow"]["stiffness_per_K"] = self.stiffness_per_K
         if self.offsets:
             d["offsets"] = {ch: {"N": a, "N_at_FNOMIN": b} for ch, (a, b) in self.offsets.items()}
         if self.alpha_shift_rad:
@@ -198,16 +200,17 @@ def _wheel(d: object, where: str) -> WheelEffects:
             f"{where}.bulk: the version 1 grip node is no longer run; rerun diagnose"
         )
     nodes = {k: _node(d[k], f"{where}.{k}") for k in NODES if k in d}
-    start = (
-        _number(d["thermal_slow"], "start_K", f"{where}.thermal_slow")
-        if "thermal_slow" in d
-        else 0.0
-    )
+    slow = d.get("thermal_slow")
+    start = _number(slow, "start_K", f"{where}.thermal_slow") if slow is not None else 0.0
+    stiff = 0.0
+    if isinstance(slow, Mapping) and "stiffness_per_K" in slow:  # version 2 files without it read
+        stiff = _number(slow, "stiffness_per_K", f"{where}.thermal_slow")
     return WheelEffects(
         T_amb_C=_number(d, "T_amb_C", where, -T_ABS0_C) if "T_amb_C" in d else 25.0,
         thermal=nodes.get("thermal"),
         thermal_slow=nodes.get("thermal_slow"),
         thermal_slow_start_K=start,
+        stiffness_per_K=stiff,
         gas=nodes.get("gas"),
         offsets=_offsets(d.get("offsets", {}), f"{where}.offsets"),
         alpha_shift_rad=_number(d, "alpha_shift_rad", where) if "alpha_shift_rad" in d else 0.0,
@@ -337,6 +340,9 @@ class EffectState:
                 p = gas_pressure_Pa(p_nom, self.y["gas"], fx.T_amb_C)
         self._rho = float(relative_deflection(Fz_over_FNOMIN, 1.0, p, p_nom))
         alpha = alpha + fx.alpha_shift_rad
+        if fx.stiffness_per_K:  # the carcass' stiffness loss: slips scaled before similarity
+            k = max(1.0 + fx.stiffness_per_K * self.y["thermal_slow"], 0.3)
+            kappa, alpha = kappa * k, math.atan(math.tan(alpha) * k)
         s = 1.0
         if self._table is not None:
             Vs = abs(Vx) * math.hypot(kappa, math.tan(alpha))

@@ -42,8 +42,9 @@ class SealedGas(EffectModel):
 
     Where the tread temperature is recorded, it drives the gas node instead of the power (a
     recorded channel is a thermometer: the gas follows the tread with a lag, heating less).
-    ``mode`` "physical" is the model; "memoryless", "scrambled" and "trend" (the pressure a
-    ramp in time of either sign) are its controls.
+    ``mode`` "physical" is the model; "memoryless", "reversed" (the drive played backwards:
+    a node of minutes is not tested by shuffling seconds) and "trend" (the pressure a ramp in
+    time of either sign) are its controls.
     """
 
     stable_in_time = False  # the first half sees the gas warm up, the second warm
@@ -56,7 +57,7 @@ class SealedGas(EffectModel):
         self.label = {
             "physical": "hidden gas node heated by frictional power, gas law, file's terms",
             "memoryless": "control: gas temperature follows frictional power at once",
-            "scrambled": "control: the gas node driven by a time-scrambled power",
+            "reversed": "control: the gas node driven by the power played backwards",
             "trend": "control: pressure a plain trend in time",
         }[mode]
         self.by_T = ctx.wheel.inputs["T"] is not None
@@ -70,7 +71,7 @@ class SealedGas(EffectModel):
             "memoryless": [gain],
             "trend": [Param("rise_per_session", 0.0, -0.5, 0.5, 0.02)],
         }
-        params["scrambled"] = params["physical"]
+        params["reversed"] = params["physical"]
         starts = [{"tau_gas_s": 30.0}, {"tau_gas_s": 600.0}] if mode != "trend" else []
         super().__init__(params[mode], starts if mode != "memoryless" else [])
 
@@ -81,7 +82,7 @@ class SealedGas(EffectModel):
         return [cls(ctx)]
 
     def controls(self, ctx: Context) -> list[EffectModel]:
-        return [SealedGas(ctx, m) for m in ("memoryless", "scrambled", "trend")]
+        return [SealedGas(ctx, m) for m in ("memoryless", "reversed", "trend")]
 
     def drive(self, x: Array, ctx: Context) -> Array:
         """The gas node's input [K]: the share of the recorded tread rise over its start, or
@@ -98,7 +99,7 @@ class SealedGas(EffectModel):
         if self.mode == "trend":
             return ctx.p_nom * (1.0 + float(x[0]) * w.t / ctx.t_end)
         u = self.drive(x, ctx)
-        u = u[w.scramble] if self.mode == "scrambled" else u
+        u = u[::-1] if self.mode == "reversed" else u
         rise = u if self.mode == "memoryless" else first_order(u, w.t, float(x[0]))
         return np.asarray(gas_pressure_Pa(ctx.p_nom, rise, ctx.T_amb), dtype=np.float64)
 

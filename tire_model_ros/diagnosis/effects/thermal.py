@@ -25,6 +25,7 @@ from .base import Array, EffectModel, Param
 TAU_FAST_S = (0.3, 60.0)  # tread surface (PHYSICS.md: seconds)
 TAU_SLOW_S = (30.0, 900.0)  # carcass (PHYSICS.md: 1-5 min; up to 15 for a big tyre)
 TT_ALL = tuple(f"TT{a}{i}" for a in "XY" for i in (1, 2, 3, 4))
+STIFFNESS_PER_K = 0.02  # bound of the carcass' stiffness loss [1/K] (PHYSICS.md: -10 % / 10 K)
 TT_SPAN = 2.0  # bound of a TT coefficient change (dT is about 1 over the convention's rise)
 # A temperature law keeps each factor (stiffness: 1 + TT*1 dT + TT*2 dT^2, grip: TT*3, TT*4)
 # within these over the temperatures it is applied to (PHYSICS.md: grip -10 % per +10 degC at
@@ -34,36 +35,36 @@ PENALTY_WEIGHT = 300.0  # noise units per unit of factor outside its range
 RECORDED_T_MIN_STD_K = 0.5  # a recorded temperature that moves less tells nothing
 
 
-def _tt_names(ctx: Context) -> list[str]:
-    """Stiffness TT*1 and grip TT*3, TT*4 (TTX where slip ratio is swept, TTY where slip
-    angle is): stiffness falls with temperature (PHYSICS.md: monotonically, so linear and
-    TT*2 left as the file has it), grip has a window (a quadratic)."""
-    out = []
-    for axis, key in (("X", "x"), ("Y", "y")):
-        if ctx.informative[key]:
-            out += [f"TT{axis}{i}" for i in (1, 3, 4)]
-    return out
+def _axes(ctx: Context) -> list[str]:
+    """X where slip ratio is swept, Y where slip angle is."""
+    return [axis for axis, key in (("X", "x"), ("Y", "y")) if ctx.informative[key]]
 
 
-def _tt_params(ctx: Context) -> list[Param]:
-    """The changes of the TT coefficients; a stiffness term may only make stiffness fall."""
-    return [
-        Param(k, 0.0, -TT_SPAN, 0.0 if k.endswith("1") else TT_SPAN, 0.1) for k in _tt_names(ctx)
-    ]
+def _tt_params(ctx: Context, stiffness: bool = True) -> list[Param]:
+    """Grip TT3, TT4 and (``stiffness``) TT1, one of each for both directions (the window is
+    the rubber's: TTX3 = TTY3 ...; a direction swept in a few sweeps borrows the other's):
+    grip has a window (a quadratic), stiffness falls with temperature (PHYSICS.md:
+    monotonically, so linear, TT*2 left as the file has it)."""
+    if not _axes(ctx):
+        return []
+    grip = [Param("TT3", 0.0, -TT_SPAN, TT_SPAN, 0.1), Param("TT4", 0.0, -TT_SPAN, TT_SPAN, 0.1)]
+    return ([Param("TT1", 0.0, -TT_SPAN, 0.0, 0.1)] if stiffness else []) + grip
 
 
 class _TTModel(EffectModel):
-    """Shared: the TT coefficients are the last parameters, additive to the file's, and the
+    """Shared: the TT parameters, applied to TTX and TTY additively to the file's, and the
     factors they make stay physical over the model's temperatures."""
 
     word = "temperature"
 
     def coef(self, x: Array, ctx: Context) -> dict[str, float]:
-        k0 = self.n - len(_tt_names(ctx))
-        return {
-            k: ctx.base.get(k, 0.0) + float(v)
-            for k, v in zip(self.pnames[k0:], x[k0:], strict=True)
-        }
+        out = {}
+        for k, v in zip(self.pnames, x, strict=True):
+            if k.startswith("TT"):
+                for axis in _axes(ctx):
+                    name = f"TT{axis}{k[2:]}"
+                    out[name] = ctx.base.get(name, 0.0) + float(v)
+        return out
 
     def temperature(self, x: Array, ctx: Context) -> Array:
         raise NotImplementedError
@@ -75,13 +76,11 @@ class _TTModel(EffectModel):
     def penalty(self, x: Array, ctx: Context) -> Array:
         T, T0 = self.temperature(x, ctx), self.reference_C(ctx)
         dT = (np.linspace(float(T.min()), float(T.max()), 9) - T0) / max(T0, 1e-6)
-        c = self.coef(x, ctx)
+        c = {**ctx.base, **self.coef(x, ctx)}
         out = []
-        for axis in ("X", "Y"):
+        for axis in _axes(ctx):
             for lin, quad in ((1, 2), (3, 4)):
-                a, b = c.get(f"TT{axis}{lin}"), c.get(f"TT{axis}{quad}")
-                if a is None or b is None:
-                    continue
+                a, b = c.get(f"TT{axis}{lin}", 0.0), c.get(f"TT{axis}{quad}", 0.0)
                 f = 1.0 + a * dT + b * dT**2
                 lo, hi = FACTOR_RANGE
                 out.append(np.maximum(lo - f, 0.0) + np.maximum(f - hi, 0.0))
@@ -89,11 +88,14 @@ class _TTModel(EffectModel):
 
 
 class HiddenThermal(_TTModel):
-    """Concealed heating: T = T_amb + k (fast + share * slow) + T0 exp(-t / tau_slow).
+    """Concealed heating: the grip follows T = T_amb + fast + share * slow through TT*3 and
+    TT*4 (the tread surface on the carcass, heated by k P_fric; the carcass node starts at a
+    pre-warmed T0), the slip stiffness the carcass alone: a factor 1 + c * slow [1/K].
 
     ``mode`` "physical" is the model; "memoryless" (T follows the power at once), "scrambled"
-    (the same nodes driven by a block-shuffled power) and "trend" (T a plain ramp in time) are
-    its controls.
+    (the same nodes driven by a block-shuffled power: the tread's seconds tested), "reversed"
+    (the power played backwards: the carcass' minutes tested) and "trend" (T a plain ramp in
+    time) are its controls.
     """
 
     stable_in_time = False  # the first half sees the tyre warm up, the second hot
@@ -106,6 +108,7 @@ class HiddenThermal(_TTModel):
             "physical": "hidden tread and carcass nodes heated by frictional power",
             "memoryless": "control: temperature follows frictional power at once",
             "scrambled": "control: the nodes driven by a time-scrambled power",
+            "reversed": "control: the nodes driven by the power played backwards",
             "trend": "control: temperature a plain trend in time",
         }[mode]
         nodes = [
@@ -114,38 +117,49 @@ class HiddenThermal(_TTModel):
             Param("slow_share", 1.0, 0.0, 20.0, 0.5),
             Param("T0_K", 0.0, 0.0, 60.0, 10.0),  # a pre-warmed start (0: at ambient)
         ]
-        head = nodes if mode in ("physical", "scrambled") else []
+        head = nodes if mode in ("physical", "scrambled", "reversed") else []
+        stiff = [Param("stiffness_per_K", 0.0, -STIFFNESS_PER_K, 0.0, 0.002)]
         starts = [
             {"tau_fast_s": 1.0},
             {"tau_fast_s": 10.0},
             {"tau_slow_s": 60.0, "slow_share": 2.0},
         ]
-        super().__init__([*head, *_tt_params(ctx)], starts if head else [])
+        super().__init__([*head, *stiff, *_tt_params(ctx, False)], starts if head else [])
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
-        if ctx.wheel.inputs["T"] is not None or not _tt_names(ctx):
+        if ctx.wheel.inputs["T"] is not None or not _axes(ctx):
             return []
         return [cls(ctx)]
 
     def controls(self, ctx: Context) -> list[EffectModel]:
-        return [HiddenThermal(ctx, m) for m in ("memoryless", "scrambled", "trend")]
+        return [HiddenThermal(ctx, m) for m in ("memoryless", "scrambled", "reversed", "trend")]
 
-    def temperature(self, x: Array, ctx: Context) -> Array:
-        """The hidden tread temperature [degC] on the convention's scale."""
+    def nodes(self, x: Array, ctx: Context) -> tuple[Array, Array]:
+        """The tread (fast) and carcass (slow) rises [K] on the convention's scale."""
         w, k = ctx.wheel, ctx.k_thermal
         if self.mode == "memoryless":
-            return ctx.T_amb + k * w.P
+            return k * w.P, k * w.P
         if self.mode == "trend":
-            return ctx.T_amb + THERMAL_RISE_REF_K * w.t / ctx.t_end
-        P = w.P[w.scramble] if self.mode == "scrambled" else w.P
-        tau_f, tau_s, share, T0 = (float(v) for v in x[:4])
-        fast = first_order(k * P, w.t, tau_f)
-        slow = first_order(k * share * P, w.t, tau_s, T0)
-        return ctx.T_amb + fast + slow
+            ramp = THERMAL_RISE_REF_K * w.t / ctx.t_end
+            return ramp, ramp
+        P = {"scrambled": w.P[w.scramble], "reversed": w.P[::-1]}.get(self.mode, w.P)
+        v = self.values(x)
+        fast = first_order(k * P, w.t, v["tau_fast_s"])
+        slow = first_order(k * v["slow_share"] * P, w.t, v["tau_slow_s"], v["T0_K"])
+        return fast, slow
+
+    def temperature(self, x: Array, ctx: Context) -> Array:
+        """The hidden tread temperature [degC] that the grip follows."""
+        fast, slow = self.nodes(x, ctx)
+        return ctx.T_amb + (fast if self.mode in ("memoryless", "trend") else fast + slow)
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         inp["T"] = self.temperature(x, ctx)
+        k = np.maximum(1.0 + self.values(x)["stiffness_per_K"] * self.nodes(x, ctx)[1], 0.3)
+        kappa, alpha = inp["kappa"], inp["alpha"]
+        assert kappa is not None and alpha is not None
+        inp["kappa"], inp["alpha"] = kappa * k, np.arctan(np.tan(alpha) * k)
 
     def inferred(self, x: Array, ctx: Context, inp: Mapping[str, Array | None]) -> dict[str, Array]:
         return {"T": self.temperature(x, ctx)}
@@ -155,12 +169,13 @@ class HiddenThermal(_TTModel):
         return {**self.values(x), "gain_K_per_W": ctx.k_thermal, "T_amb_C": ctx.T_amb}
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
-        tau_f, tau_s, share, T0 = (float(v) for v in x[:4])
+        v = self.values(x)
         return {
             "T_amb_C": ctx.T_amb,
-            "thermal": Node(tau_f, ctx.k_thermal),
-            "thermal_slow": Node(tau_s, ctx.k_thermal * share),
-            "thermal_slow_start_K": T0,
+            "thermal": Node(v["tau_fast_s"], ctx.k_thermal),
+            "thermal_slow": Node(v["tau_slow_s"], ctx.k_thermal * v["slow_share"]),
+            "thermal_slow_start_K": v["T0_K"],
+            "stiffness_per_K": v["stiffness_per_K"],
         }
 
 
@@ -203,7 +218,7 @@ class RecordedThermal(_TTModel):
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
         T = ctx.wheel.inputs["T"]
-        if T is None or float(np.std(T)) < RECORDED_T_MIN_STD_K or not _tt_names(ctx):
+        if T is None or float(np.std(T)) < RECORDED_T_MIN_STD_K or not _axes(ctx):
             return []
         return [cls(ctx)]
 

@@ -1,0 +1,1 @@
+"""Brush-model reality generator (see README.md)."""
