@@ -93,6 +93,14 @@ def test_envelope_covers_what_was_fitted_and_fills_between(tyre, tmp_path):
         Envelope.from_tir(read_tir(bad))
 
 
+def test_filled_cells_take_what_informed_both_sides():
+    cells = {(12, 11, 8): RIG | SIMULATION, (12, 11, 16): SIMULATION}  # 40 and 80 degC
+    cells |= {(5, 13, 7): RIG, (5, 13, 9): SIMULATION}
+    env = Envelope(*STEPS, cells).filled()
+    assert {env.cells[(12, 11, k)] for k in range(9, 16)} == {SIMULATION}  # the rig never hot
+    assert env.cells[(5, 13, 8)] == RIG | SIMULATION  # nothing shared: either side's
+
+
 def test_eval_warns_about_rows_outside_the_envelope(tyre, tmp_path):
     path = tmp_path / "enveloped.tir"
     write_tir(_envelope().into(tyre.tir), path)

@@ -149,8 +149,10 @@ class Envelope:
         return Envelope(self.fz_step_N, self.p_step_Pa, T_step, cells)
 
     def filled(self) -> Envelope:
-        """Gaps between covered cells along each axis filled (with the sources of the cells
-        on both sides): what the fit interpolates is inside, what it extrapolates is not."""
+        """Gaps between covered cells along each axis filled: what the fit interpolates is
+        inside, what it extrapolates is not. A filled cell's source is what informed both
+        sides (a rig-and-simulation cell and a simulated one: simulation between them), else
+        either side's."""
         cells = dict(self.cells)
         for axis in range(3):
             lines: dict[tuple[int, int], list[int]] = {}
@@ -160,7 +162,8 @@ class Envelope:
             for rest, values in lines.items():
                 values.sort()
                 for a, b in itertools.pairwise(values):
-                    src = cells[_put(rest, axis, a)] | cells[_put(rest, axis, b)]
+                    lo, hi = cells[_put(rest, axis, a)], cells[_put(rest, axis, b)]
+                    src = (lo & hi) or (lo | hi)
                     for v in range(a + 1, b):
                         cells[_put(rest, axis, v)] = src
         return Envelope(self.fz_step_N, self.p_step_Pa, self.T_step_K, cells)
