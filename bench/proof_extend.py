@@ -98,7 +98,10 @@ def record(tir: Path, out: Path, seed: int) -> tuple[Path, Path, Any]:
     flat, _ = simulate_session(
         truth_model, "special_conditions", effects={"noise": False, "sidewall": False}
     )
-    corner = np.abs(truth[0].Fy) < (1.0 - CORNER_LOSS) * np.abs(flat[0].Fy)
+    Fy, Fy_flat = truth[0].Fy, flat[0].Fy
+    if Fy is None or Fy_flat is None:
+        raise RuntimeError("special_conditions recorded no Fy")
+    corner = np.abs(Fy) < (1.0 - CORNER_LOSS) * np.abs(Fy_flat)
     truth[0].meta["corner"] = corner
     return out / "rig", out / "sim", truth[0]
 
