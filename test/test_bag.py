@@ -273,14 +273,22 @@ def test_numpy_cdr_matches_rosbags(msgtype):
 
 
 def test_damaged_message_names_topic(tmp_path):
+    """A message stored whole (every CRC holds) whose CDR bytes are wrong: the decoder names
+    the topic. (Bytes damaged in the file itself are a CRC mismatch: test_bag_trust.)"""
+    from tire_model_ros.recording import BagWriter
+
     w = wheel(n=10)
     write_recording(tmp_path / "b.mcap", [w])
-    data = bytearray((tmp_path / "b.mcap").read_bytes())
-    # the frame_id length of the first load message -> huge: neither decoder can read it
-    topics = read_raw(tmp_path / "b.mcap").topics["/rig/wheel/load"]
-    buf_off = data.find(topics.message(0))
-    data[buf_off + 12 : buf_off + 16] = (10**6).to_bytes(4, "little")
-    (tmp_path / "c.mcap").write_bytes(bytes(data))
+    raw = read_raw(tmp_path / "b.mcap")
+    with BagWriter(tmp_path / "c.mcap") as writer:
+        for topic, t in raw.topics.items():
+            writer.add_topic(topic, t.msgtype)
+            for i in range(len(t)):
+                data = bytearray(t.message(i))
+                if topic == "/rig/wheel/load" and i == 0:
+                    # frame_id length -> huge: neither decoder can read it
+                    data[12:16] = (10**6).to_bytes(4, "little")
+                writer.write(topic, int(t.log_ns[i]), bytes(data))
     with pytest.raises(RecordingError, match=r"c\.mcap: topic /rig/wheel/load: corrupted"):
         read_recording(tmp_path / "c.mcap")
 
@@ -511,11 +519,18 @@ def test_error_truncated_bag(tmp_path, name):
     target = tmp_path / name / "dir.mcap" if name == "dir" else tmp_path / name
     data = target.read_bytes()
     target.write_bytes(data[: len(data) // 2])
-    with pytest.raises(RecordingError, match=rf"{name}: cannot read the bag, truncated"):
+    # MCAP: no footer, the end named (test_bag_trust salvages it); sqlite3: rosbags' error
+    with pytest.raises(
+        RecordingError,
+        match=rf"{name}\b.*: (end of file at byte \d+: )?"
+        "(cannot read the bag, )?truncated",
+    ):
         read_recording(tmp_path / name)
 
 
 def test_error_corrupted_mcap_index(tmp_path):
+    from mcap.reader import make_reader
+
     write_recording(tmp_path / "b.mcap", [wheel(n=300)])
     data = bytearray((tmp_path / "b.mcap").read_bytes())
     slip = read_raw(tmp_path / "b.mcap").topics["/rig/wheel/slip"]
@@ -523,7 +538,24 @@ def test_error_corrupted_mcap_index(tmp_path):
     assert data[record] == 0x05
     data[record + 1 : record + 9] = (2**40).to_bytes(8, "little")  # absurd record length
     (tmp_path / "b.mcap").write_bytes(bytes(data))
-    with pytest.raises(RecordingError, match=r"b\.mcap: cannot read the bag.*disagree"):
+    with pytest.raises(
+        RecordingError,
+        match=r"b\.mcap: chunk at byte \d+ \(topics .*"
+        r"/rig/wheel/slip.*\): CRC mismatch",
+    ):
+        read_recording(tmp_path / "b.mcap")
+    # A writer without CRCs (rosbags writes none): the index and the records disagree.
+    with open(tmp_path / "b.mcap", "rb") as f:
+        chunk = make_reader(f).get_summary().chunk_indexes[0].chunk_start_offset
+    data[chunk + 9 + 24 : chunk + 9 + 28] = b"\0" * 4  # chunk CRC: not written
+    data_end = data.rfind(b"\x0f\x04" + b"\0" * 7)
+    data[data_end + 9 : data_end + 13] = b"\0" * 4  # data section CRC: not written
+    (tmp_path / "b.mcap").write_bytes(bytes(data))
+    with pytest.raises(
+        RecordingError,
+        match=r"b\.mcap: message index at byte \d+ "
+        r"\(topics /rig/wheel/slip\): message index and message records disagree",
+    ):
         read_recording(tmp_path / "b.mcap")
 
 
@@ -705,43 +737,80 @@ def test_split_bag_several_storage_files(tmp_path, storage):
         write_recording(tmp_path / "b" / f"b_{k}{ext}", [part])
     meta_path = tmp_path / "b" / "metadata.yaml"
     meta = yaml.safe_load(meta_path.read_text())
-    meta["rosbag2_bagfile_information"]["relative_file_paths"] = [f"b_0{ext}", f"b_1{ext}"]
+    info = meta["rosbag2_bagfile_information"]
+    info["relative_file_paths"] = [f"b_0{ext}", f"b_1{ext}"]
+    entry = info["files"][0]
+    info["files"] = [
+        {**entry, "path": f"b_{k}{ext}", "message_count": n} for k, n in [(0, 720), (1, 480)]
+    ]
     meta_path.write_text(yaml.safe_dump(meta))
     got = read_recording(tmp_path / "b")["/rig/wheel"]
     assert_same(got, w)
     assert got.meta["messages_read"] == 1200
 
 
-def test_fast_mcap_writer_is_valid_for_independent_readers(tmp_path):
-    """The vectorised MCAP writer (several chunks) against the mcap package's streaming reader
-    with CRC checks, rosbags' reader and deserialiser, and rosbags' own writer's messages."""
+def _summary_crc_holds(path: Path) -> bool:
+    """The Footer's summary CRC, computed here as the MCAP spec defines it."""
+    import struct
+    import zlib
+
+    data = path.read_bytes()
+    footer = len(data) - 8 - 29
+    summary_start, _offsets, stored = struct.unpack_from("<QQI", data, footer + 9)
+    return stored != 0 and zlib.crc32(data[summary_start or footer : footer + 25]) == stored
+
+
+def test_mcap_writers_are_valid_for_independent_readers(tmp_path):
+    """The vectorised MCAP writer (several chunks) and the streaming one (BagWriter) against
+    the mcap package's streaming reader with its CRC checks (chunks, data section), the
+    summary CRC as the spec defines it, rosbags' reader and deserialiser, and rosbags' own
+    writer's messages."""
+    from mcap.records import Chunk, DataEnd
     from mcap.stream_reader import StreamReader
-    from rosbags.rosbag2 import Reader
+    from rosbags.rosbag2 import Reader, Writer
 
     from tire_model_ros.recording.write import BagWriter, _wheel_channels
 
     w = wheel(n=4000)
     write_recording(tmp_path / "fast", [w], rates={"temperature": 50})
-    with open(tmp_path / "fast" / "fast.mcap", "rb") as f:
-        kinds: dict[str, int] = {}
-        for rec in StreamReader(f, validate_crcs=True).records:
-            kinds[type(rec).__name__] = kinds.get(type(rec).__name__, 0) + 1
-    assert kinds["ChunkIndex"] >= 2 and kinds["MessageIndex"] == 6 * kinds["ChunkIndex"]
-    assert kinds["Message"] == 5 * 4000 + len(
-        np.unique((w.meta["t_ns"] - w.meta["t_ns"][0]) // (NS // 50))
-    )
-    # the same messages through rosbags' writer (BagWriter) ...
-    with BagWriter(tmp_path / "slow") as writer:
-        for channel, (msgtype, _values) in _wheel_channels(w).items():
-            writer.add_topic(f"/rig/wheel/{channel}", msgtype)
+
+    def encoded():
         for channel, (msgtype, values) in _wheel_channels(w).items():
             t_ns = w.meta["t_ns"]
             if channel == "temperature":
                 keep = np.ones(len(t_ns), bool)
                 keep[1:] = np.diff((t_ns - t_ns[0]) // (NS // 50)) != 0
                 t_ns, values = t_ns[keep], values[keep]
-            for s, d in zip(t_ns, cdr.encode(msgtype, t_ns, values), strict=True):
-                writer.write(f"/rig/wheel/{channel}", int(s), d)
+            yield f"/rig/wheel/{channel}", msgtype, t_ns, cdr.encode(msgtype, t_ns, values)
+
+    # the same messages through this package's streaming writer and rosbags' writer
+    with BagWriter(tmp_path / "stream", chunk_bytes=100_000) as writer:
+        for topic, msgtype, t_ns, data in encoded():
+            writer.add_topic(topic, msgtype)
+            for s, d in zip(t_ns, data, strict=True):
+                writer.write(topic, int(s), d)
+    with Writer(tmp_path / "rosbags", version=9) as writer:
+        for topic, msgtype, t_ns, data in encoded():
+            conn = writer.add_connection(topic, msgtype, typestore=cdr.typestore())
+            for s, d in zip(t_ns, data, strict=True):
+                writer.write(conn, int(s), d)
+    for name in ("fast", "stream"):
+        with open(tmp_path / name / f"{name}.mcap", "rb") as f:
+            kinds: dict[str, int] = {}
+            for rec in StreamReader(f, validate_crcs=True).records:
+                kinds[type(rec).__name__] = kinds.get(type(rec).__name__, 0) + 1
+                if isinstance(rec, Chunk):
+                    assert rec.uncompressed_crc != 0, name  # written, and checked above
+                if isinstance(rec, DataEnd):
+                    assert rec.data_section_crc != 0, name
+        assert kinds["ChunkIndex"] >= 2
+        # the vectorised writer interleaves the topics in time; this stream wrote topic by topic
+        per_chunk = kinds["MessageIndex"] / kinds["ChunkIndex"]
+        assert per_chunk == 6 if name == "fast" else 1 <= per_chunk < 6
+        assert kinds["Message"] == 5 * 4000 + len(
+            np.unique((w.meta["t_ns"] - w.meta["t_ns"][0]) // (NS // 50))
+        )
+        assert _summary_crc_holds(tmp_path / name / f"{name}.mcap"), name
 
     def messages(path):
         with Reader(path) as reader:
@@ -752,8 +821,11 @@ def test_fast_mcap_writer_is_valid_for_independent_readers(tmp_path):
                 out.setdefault(conn.topic, []).append((log_ns, bytes(data)))
             return {t: sorted(v) for t, v in out.items()}, reader.message_count
 
-    assert messages(tmp_path / "fast") == messages(tmp_path / "slow")
-    assert_same(
-        read_recording(tmp_path / "fast")["/rig/wheel"],
-        read_recording(tmp_path / "slow")["/rig/wheel"],
-    )
+    reference = messages(tmp_path / "rosbags")
+    assert messages(tmp_path / "fast") == reference
+    assert messages(tmp_path / "stream") == reference
+    for name in ("fast", "stream"):
+        assert_same(
+            read_recording(tmp_path / name)["/rig/wheel"],
+            read_recording(tmp_path / "rosbags")["/rig/wheel"],
+        )

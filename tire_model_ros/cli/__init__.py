@@ -51,7 +51,3 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError, RosUnavailableError) as exc:  # user-facing, with their context
         print(f"tire-model {argv[0]}: error: {exc}", file=sys.stderr)
         return 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())

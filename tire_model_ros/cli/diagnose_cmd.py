@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from tire_model_ros.atomic import write_atomic
+from tire_model_ros.cli.bagarg import add_salvage_argument, read_wheels
 from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
 
 if TYPE_CHECKING:
@@ -51,6 +52,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the sweep folds (default 0)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
     add_lenient_argument(parser)
+    add_salvage_argument(parser)
 
 
 def _check_free(path: str | os.PathLike[str] | None, force: bool) -> None:
@@ -118,7 +120,6 @@ def node_params(diag: Diagnosis, tirs: dict[str, Path], effects: Path) -> str:
 def run(args: argparse.Namespace) -> int:
     from tire_model_ros.diagnosis import diagnose
     from tire_model_ros.model import write_tir
-    from tire_model_ros.recording import read_recording
 
     out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
     if bool(args.reference) != bool(args.reference_json):
@@ -136,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
     ):
         raise FileExistsError(f"{args.report}: exists and is not empty (use --force)")
     model = load_model(args.tir, args.lenient)
-    wheels = read_recording(args.bag, wheels=args.wheel)
+    wheels = read_wheels(args.bag, args.wheel, args.salvage)
     t0, c0 = time.perf_counter(), time.process_time()
     diag = diagnose(list(wheels.values()), model, seed=args.seed)
     elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -157,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
         write_json_atomic(diag.to_json(), args.json, overwrite=args.force)
         print(f"wrote {args.json}")
     if args.reference:
-        ref = diag.score_reference(list(read_recording(args.reference, wheels=args.wheel).values()))
+        twin = read_wheels(args.reference, args.wheel, args.salvage)
+        ref = diag.score_reference(list(twin.values()))
         for ch in ref["heldout_baseline"]:
             a = ref["heldout_baseline"][ch]["rmse"]
             b = ref["heldout_improved"][ch]["rmse"]

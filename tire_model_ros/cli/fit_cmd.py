@@ -28,6 +28,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from tire_model_ros.cli.bagarg import add_salvage_argument, read_wheels
 from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
 
 if TYPE_CHECKING:
@@ -97,6 +98,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     add_lenient_argument(parser)
+    add_salvage_argument(parser)
 
 
 def default_report_dir(output: Path) -> Path:
@@ -124,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
             if p.exists():
                 raise FileExistsError(f"{p}: exists; not overwriting the report (use --force)")
     for bag in [*args.bags, *(args.extend or ())]:  # cheap checks first (numba kernels load)
-        if not Path(bag).exists():
+        if not Path(bag).exists() and not args.salvage:  # salvage may find its temp folder
             raise FileNotFoundError(f"{bag}: no such recording")
     if not Path(args.tir).is_file():
         raise FileNotFoundError(f"{args.tir}: no such .tir file")
@@ -136,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
     from tire_model_ros.model.envelope import RIG
 
     start = load_model(args.tir, args.lenient)
-    wheels = _read_wheels(args.bags, args.wheel)
+    wheels = _read_wheels(args.bags, args.wheel, args.salvage)
     options = FitOptions(
         holdout_every=args.holdout_every,
         warmup_s=args.warmup,
@@ -179,13 +181,13 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _read_wheels(bags: Sequence[str], wanted: Sequence[str] | None) -> list[WheelSeries]:
+def _read_wheels(
+    bags: Sequence[str], wanted: Sequence[str] | None, salvage: bool
+) -> list[WheelSeries]:
     """Every wheel of the recordings (only the ``wanted`` prefixes when given)."""
-    from tire_model_ros.recording import read_recording
-
     wheels = []
     for bag in bags:
-        for prefix, series in read_recording(bag).items():
+        for prefix, series in read_wheels(bag, salvage=salvage).items():
             if wanted and prefix not in wanted:
                 continue
             series.meta = {**(series.meta or {}), "bag": str(bag)}
@@ -211,7 +213,7 @@ def _run_extend(
     from tire_model_ros.model import write_tir
     from tire_model_ros.model.check import check_model
 
-    sim = _read_wheels(args.extend, None)
+    sim = _read_wheels(args.extend, None, args.salvage)
     ext = ExtendOptions(fit=options, rig_ambient_C=args.rig_ambient, progress=not args.quiet)
     result = fit_extended(rig, sim, start, ext)
     fault = check_model(result.model)

@@ -6,6 +6,7 @@ import argparse
 import signal
 from types import FrameType
 
+from tire_model_ros.cli.bagarg import add_salvage_argument
 from tire_model_ros.ros import require_ros
 
 HELP = "publish a recording's input topics with their timing"
@@ -40,6 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="wait up to S seconds for subscribers before starting",
     )
+    add_salvage_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -64,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         queue=args.queue,
         wait_subscribers_s=args.wait,
         should_stop=lambda: stop["flag"],
+        salvage=args.salvage,
     )
     print(f"published {sent} messages")
     return 0

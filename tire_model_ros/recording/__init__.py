@@ -1,6 +1,10 @@
 """Recordings (rosbag2 bags) as first-class data: read into aligned ``WheelSeries``, write back.
 
-:mod:`.read` reads bags (MCAP, sqlite3) into raw and decoded topics and aligned wheels,
+:mod:`.read` reads bags (MCAP, sqlite3) into raw and decoded topics and aligned wheels
+(through :mod:`.raw` for storage files, :mod:`.folder` for rosbag2 folders and
+:mod:`.mcap_scan` / :mod:`.mcap_index` for MCAP), checking every CRC the files carry and
+metadata.yaml against them (a damaged bag is refused, or salvaged: ``salvage=True``; then
+:mod:`.salvage` writes what was recovered as a new bag),
 :mod:`.align` holds the one alignment rule of INTERFACE.md on stamp arrays, :mod:`.write`
 writes bags atomically, :mod:`.info` summarises one. No ROS import.
 """
@@ -8,6 +12,8 @@ writes bags atomically, :mod:`.info` summarises one. No ROS import.
 from tire_model_ros.recording.align import hold_latest, latest_at_or_before, nearest
 from tire_model_ros.recording.read import (
     Channel,
+    Damage,
+    DamagedBagError,
     RawBag,
     RawTopic,
     RecordingError,
@@ -23,6 +29,8 @@ from tire_model_ros.recording.write import BagWriter, decimate_mask, write_recor
 __all__ = [
     "BagWriter",
     "Channel",
+    "Damage",
+    "DamagedBagError",
     "RawBag",
     "RawTopic",
     "RecordingError",

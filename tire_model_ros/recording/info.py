@@ -8,7 +8,8 @@ from typing import Any
 import numpy as np
 
 from tire_model_ros.recording import cdr
-from tire_model_ros.recording.read import RecordingError, find_wheels, read_raw, wheels_from_raw
+from tire_model_ros.recording.errors import RecordingError
+from tire_model_ros.recording.read import RawBag, find_wheels, read_raw, wheels_from_raw
 from tire_model_ros.vocabulary import CHANNEL_TYPES, NS_PER_S, SERIES_UNITS
 
 
@@ -26,13 +27,18 @@ def _range(values: np.ndarray | None) -> list[float] | None:
     return [float(finite.min()), float(finite.max())] if len(finite) else None
 
 
-def summarize(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Summary of a bag; raises RecordingError when it cannot be read.
+def summarize(path: str | os.PathLike[str], *, salvage: bool = False) -> dict[str, Any]:
+    """Summary of a bag; raises RecordingError when it cannot be read (``salvage``: see
+    ``read_raw``).
 
     Topics of the known fixed-layout types get header-stamp ranges and rates; a bag without a
     complete wheel still gets its topic list, with ``wheels_error`` saying what is missing.
     """
-    bag = read_raw(path)
+    return summarize_raw(read_raw(path, salvage=salvage))
+
+
+def summarize_raw(bag: RawBag) -> dict[str, Any]:
+    """``summarize`` of a bag already read with every topic selected."""
     topics = {}
     first, last = [], []
     for name, (msgtype, announced) in sorted(bag.all_topics.items()):
@@ -60,6 +66,7 @@ def summarize(path: str | os.PathLike[str]) -> dict[str, Any]:
         "messages": bag.messages_read,
         "messages_announced": bag.message_count,
         "reader_fallback": bag.fallback,
+        "damages": [d.describe() for d in bag.damages],
         "start_s": min(first) / NS_PER_S if first else None,
         "end_s": max(last) / NS_PER_S if last else None,
         "duration_s": (max(last) - min(first)) / NS_PER_S if first else 0.0,
@@ -120,6 +127,8 @@ def format_summary(info: dict[str, Any]) -> str:
         f"duration:  {_fmt(info['duration_s'], '.3f')} s  (start {_fmt(info['start_s'], '.9f')} s)",
         "topics:",
     ]
+    if info["damages"]:
+        lines[2:2] = [f"damage:    {d}" for d in info["damages"]]
     width = max((len(t) for t in info["topics"]), default=0)
     for name, t in info["topics"].items():
         lines.append(

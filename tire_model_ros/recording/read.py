@@ -6,297 +6,125 @@ other topics are ignored. Receive (log) times order messages of equal stamp (log
 file order) and are used for nothing else; the samples follow the alignment rule of
 :mod:`.align`.
 
-MCAP files are read through their chunk and message indexes with numpy (``mcap_index``), CDR
+Storage files are read by :mod:`.raw`, folders by :mod:`.folder`. MCAP files are read by this
+package (``mcap_scan.read_mcap``): through their chunk and message indexes with numpy
+(``mcap_index``), else record by record; every CRC the file carries is checked. CDR is
 decoded with fixed layouts (``cdr``; rosbags' deserialiser is the reference and the fallback
-for odd messages). sqlite3 bags and unindexed MCAP go through rosbags; when its metadata.yaml
+for odd messages). sqlite3 bags go through rosbags; when its metadata.yaml
 route yields fewer messages than metadata ``message_count`` (QoS in metadata.yaml differing
 from the storage file's makes it yield none), the storage files are opened directly
-(``RawBag.fallback``).
+(``RawBag.fallback``). A metadata.yaml that lists a file twice, or whose counts disagree with
+what the files hold, is refused (``metadata``).
 
 Errors are ``RecordingError`` (a ``ValueError``) naming the file and, where one is concerned,
-the topic; rosbags' own exceptions never reach the caller.
+the topic; rosbags' own exceptions never reach the caller. A damaged bag is refused with a
+``DamagedBagError`` naming the file, the byte offset and the topics, or read with
+``salvage=True``, which skips what is damaged and lists it (``RawBag.salvage_report``).
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tire_model_ros.recording import cdr, mcap_index
+from tire_model_ros.recording import cdr
 from tire_model_ros.recording.align import align_wheel
+from tire_model_ros.recording.errors import Damage, DamagedBagError, RecordingError
+from tire_model_ros.recording.folder import read_folder, storage_files_in
+from tire_model_ros.recording.raw import RawBag, RawTopic, Select, read_file, storage_of
 from tire_model_ros.recording.series import WheelSeries
 from tire_model_ros.vocabulary import CHANNEL_TYPES, OPTIONAL_CHANNELS, REQUIRED_CHANNELS
 
-if TYPE_CHECKING:
-    from rosbags.interfaces import Connection
-    from rosbags.rosbag2.storage_mcap import McapReader
-    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
-
-#: Which topics to keep: topic name -> keep it.
-Select = Callable[[str], bool]
-#: Every topic of a bag -> (message type, message count).
-TopicTable = dict[str, tuple[str, int]]
-
-
-class RecordingError(ValueError):
-    """A recording that cannot be read or written; the message names the file and topic."""
-
-
-# --------------------------------------------------------------------------- raw access
-
-
-@dataclass
-class RawTopic:
-    """The undecoded messages of one topic, in bag order (log time; ties: file order).
-
-    Message i is ``buf[starts[i] : starts[i] + lens[i]]`` (CDR bytes).
-    """
-
-    msgtype: str
-    buf: np.ndarray
-    starts: np.ndarray
-    lens: np.ndarray
-    log_ns: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.starts)
-
-    def message(self, i: int) -> bytes:
-        return self.buf[self.starts[i] : self.starts[i] + self.lens[i]].tobytes()
+__all__ = [
+    "Channel",
+    "Damage",
+    "DamagedBagError",
+    "RawBag",
+    "RawTopic",
+    "RecordingError",
+    "decode_topic",
+    "find_wheels",
+    "read_raw",
+    "read_recording",
+    "storage_of",
+    "wheel_select",
+    "wheels_from_raw",
+]
 
 
-@dataclass
-class RawBag:
-    """Messages of the selected topics, plus what the container says about all topics."""
-
-    path: Path
-    storage: str  # "mcap" or "sqlite3"
-    topics: dict[str, RawTopic]  # selected topics only
-    all_topics: dict[str, tuple[str, int]]  # every topic -> (type, count in metadata/index)
-    message_count: int  # messages the container announces (metadata / summary)
-    messages_read: int  # messages actually found (all topics)
-    fallback: bool = False  # True: the metadata.yaml route found too few; read the file itself
+def _leftovers(path: Path) -> list[Path]:
+    """Temporary folders that an interrupted writer of ``path`` left beside it."""
+    return sorted(p for p in path.parent.glob(f".{path.name}.*.tmp") if p.is_dir())
 
 
-def storage_of(path: Path) -> str:
-    """The storage a lone file's suffix names: "sqlite3" for .db3, else "mcap"."""
-    return "sqlite3" if path.suffix == ".db3" else "mcap"
+def _missing(path: Path, salvage: bool) -> Path:
+    """What to read for a path that does not exist: with ``salvage``, the one temporary folder
+    an interrupted recorder left for it; else an error (naming such folders)."""
+    left = _leftovers(path)
+    if salvage and len(left) == 1:
+        return left[0]
+    if not left:
+        raise RecordingError(f"{path}: no such file or directory")
+    hint = "--salvage reads it" if len(left) == 1 else "salvage one of them"
+    raise RecordingError(
+        f"{path}: no such file or directory; an interrupted recording left "
+        f"{', '.join(str(p) for p in left)} ({hint})"
+    )
 
 
-def _open_storage_file(path: Path) -> McapReader | Sqlite3Reader:
-    from rosbags.rosbag2.storage_mcap import McapReader
-    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
-
-    reader = (Sqlite3Reader if path.suffix == ".db3" else McapReader)(path)
-    reader.open()
-    return reader
-
-
-class _Collector:
-    """Gathers (topic, log time, bytes) from rosbags' iterators into ``RawTopic`` arrays."""
-
-    def __init__(self, select: Select) -> None:
-        self.select = select
-        self.count = 0
-        self.parts: dict[str, tuple[str, list[bytes], list[int]]] = {}
-
-    def add(self, messages: Iterable[tuple[Connection, int, bytes]]) -> None:
-        for conn, log_ns, data in messages:
-            self.count += 1
-            if self.select(conn.topic):
-                part = self.parts.get(conn.topic)
-                if part is None:
-                    part = self.parts[conn.topic] = (conn.msgtype, [], [])
-                elif part[0] != conn.msgtype:
-                    raise RecordingError(
-                        f"topic {conn.topic} has two message types: {part[0]} and {conn.msgtype}"
-                    )
-                part[1].append(data)
-                part[2].append(log_ns)
-
-    def topics(self) -> dict[str, RawTopic]:
-        out: dict[str, RawTopic] = {}
-        for topic, (msgtype, data, log_ns) in self.parts.items():
-            buf, starts, lens = cdr.join(data)
-            log = np.asarray(log_ns, np.int64)
-            order = np.argsort(log, kind="stable")
-            out[topic] = RawTopic(msgtype, buf, starts[order], lens[order], log[order])
-        return out
-
-
-def _topic_table(connections: Iterable[Connection]) -> TopicTable:
-    table: TopicTable = {}
-    for c in connections:
-        old = table.get(c.topic, (c.msgtype, 0))
-        table[c.topic] = (c.msgtype, old[1] + c.msgcount)
-    return table
-
-
-def _read_storage_file(
-    path: Path, select: Select
-) -> tuple[dict[str, RawTopic], int, int, TopicTable]:
-    """(topics, messages found, messages announced, topic table) of one .mcap/.db3 file."""
-    if path.suffix == ".mcap":
-        fast = mcap_index.read_indexed(path, select)
-        if fast is not None:
-            table, count, buffer, found = fast
-            topics = {
-                t: RawTopic(mt, buffer, starts, lens, log)
-                for t, (mt, starts, lens, log) in found.items()
-            }
-            return topics, count, count, table
-    reader = _open_storage_file(path)
-    try:
-        collector = _Collector(select)
-        collector.add(reader.messages(reader.connections))
-        announced = reader.metadata.message_count
-        table = _topic_table(reader.connections)
-    finally:
-        reader.close()
-    return collector.topics(), collector.count, announced, table
-
-
-def _mcap_files(path: Path) -> tuple[list[Path], int] | None:
-    """Storage files and message count of an uncompressed MCAP rosbag2 folder, read from its
-    metadata.yaml with PyYAML's C loader; None for anything else (rosbags then reads it)."""
-    import yaml
-
-    try:
-        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-        info = yaml.load((path / "metadata.yaml").read_text(), Loader=loader)
-        info = info["rosbag2_bagfile_information"]
-        files = [path / Path(f).name for f in info["relative_file_paths"]]
-        if (
-            int(info.get("version", 1)) > 9
-            or info["storage_identifier"] != "mcap"
-            or str(info.get("compression_mode") or "none").lower() != "none"
-            or not files
-            or not all(f.is_file() and f.suffix == ".mcap" for f in files)
-        ):
-            return None
-        return files, int(info["message_count"])
-    except Exception:  # any surprise: let rosbags read it and report
-        return None
-
-
-def _compact(t: RawTopic) -> tuple[np.ndarray, np.ndarray]:
-    """The topic's message bytes back to back, and each message's start in them."""
-    new_starts = np.zeros(len(t), np.int64)
-    if len(t):
-        np.cumsum(t.lens[:-1], out=new_starts[1:])
-    pos = np.repeat(t.starts - new_starts, t.lens) + np.arange(int(t.lens.sum()), dtype=np.int64)
-    return t.buf[pos], new_starts
-
-
-def _merge(parts: list[dict[str, RawTopic]]) -> dict[str, RawTopic]:
-    """Topics of several storage files (a split bag) as one, in log-time order."""
-    out: dict[str, RawTopic] = {}
-    for topic in dict.fromkeys(t for part in parts for t in part):
-        pieces = [part[topic] for part in parts if topic in part]
-        if len(pieces) == 1:
-            out[topic] = pieces[0]
-            continue
-        if len({p.msgtype for p in pieces}) > 1:
-            raise RecordingError(f"topic {topic} has different message types in different files")
-        bufs, starts, base = [], [], 0
-        for p in pieces:
-            buf, st = _compact(p)
-            bufs.append(buf)
-            starts.append(st + base)
-            base += len(buf)
-        start = np.concatenate(starts)
-        lens = np.concatenate([p.lens for p in pieces])
-        log = np.concatenate([p.log_ns for p in pieces])
-        order = np.argsort(log, kind="stable")
-        out[topic] = RawTopic(
-            pieces[0].msgtype, np.concatenate(bufs), start[order], lens[order], log[order]
-        )
-    return out
-
-
-def _read_files(
-    files: Sequence[Path], select: Select
-) -> tuple[dict[str, RawTopic], int, TopicTable]:
-    parts: list[dict[str, RawTopic]] = []
-    count = 0
-    table: TopicTable = {}
-    for file in files:
-        found, n, _, file_table = _read_storage_file(file, select)
-        parts.append(found)
-        count += n
-        for t, (mt, c) in file_table.items():
-            table[t] = (mt, table.get(t, (mt, 0))[1] + c)
-    return _merge(parts), count, table
-
-
-def _read_dir(path: Path, select: Select) -> RawBag:
-    from rosbags.rosbag2 import Reader
-
-    simple = _mcap_files(path)
-    if simple is not None:
-        topics, count, table = _read_files(simple[0], select)
-        return RawBag(path, "mcap", topics, table, simple[1], count)
-
-    with Reader(path) as reader:  # validates metadata.yaml (version, files, plugin)
-        # One storage reader per file of a split bag (an attribute of rosbags' concrete class).
-        storages: list[Any] = reader.storage.storages  # type: ignore[attr-defined]
-        plugin = type(storages[0]).__name__ if storages else ""
-        storage = "sqlite3" if "Sqlite" in plugin else "mcap"
-        all_topics = _topic_table(reader.connections)
-        announced = reader.message_count
-        compressed = reader.compression_mode
-        files = [Path(s.path) for s in storages]
-        collector: _Collector | None = None
-        if storage != "mcap" or compressed:
-            collector = _Collector(select)
-            collector.add(reader.messages())
-    if collector is not None and (collector.count >= announced or compressed):
-        return RawBag(path, storage, collector.topics(), all_topics, announced, collector.count)
-    # Uncompressed MCAP: read the files through their own index (fast). Also the fallback when
-    # rosbags' metadata.yaml route yields too few messages: it matches the metadata's topics to
-    # the storage file's including QoS, and yields nothing for a topic whose QoS differ.
-    topics, count, _ = _read_files(files, select)
-    return RawBag(path, storage, topics, all_topics, announced, count, collector is not None)
-
-
-def _read_file(path: Path, select: Select) -> RawBag:
-    topics, count, announced, table = _read_storage_file(path, select)
-    return RawBag(path, storage_of(path), topics, table, announced, count)
-
-
-def read_raw(path: str | os.PathLike[str], select: Select | None = None) -> RawBag:
+def read_raw(
+    path: str | os.PathLike[str], select: Select | None = None, *, salvage: bool = False
+) -> RawBag:
     """Undecoded messages of the topics for which ``select(topic)`` is true (all if None).
+
+    Parameters
+    ----------
+    salvage : read what can be trusted of a damaged or unclosed bag instead of refusing it:
+        skip damaged chunks, read an MCAP file without its footer up to its last complete
+        chunk, a folder without metadata.yaml (a recorder's temporary folder too; a missing
+        ``path`` whose recorder left one), each listed file once. ``RawBag.damages`` and
+        ``salvage_report()`` say what was skipped and what was recovered.
 
     Raises
     ------
     RecordingError
-        Missing path, not a bag, truncated or corrupted container (message names the file).
+        Missing path, not a bag, truncated or corrupted container (message names the file);
+        ``DamagedBagError`` for a CRC mismatch or an unclosed file (file, byte offset, topics).
     """
     path = Path(path)
     select = select or (lambda _topic: True)
+    note: list[Damage] = []
     if not path.exists():
-        raise RecordingError(f"{path}: no such file or directory")
+        found = _missing(path, salvage)
+        note.append(Damage(path, "file", f"does not exist; read {found}, left by its recorder"))
+        path = found
     if path.is_dir():
-        if not (path / "metadata.yaml").is_file():
-            raise RecordingError(f"{path}: not a rosbag2 folder (no metadata.yaml)")
-        reader = _read_dir
+        if not (path / "metadata.yaml").is_file() and not salvage:
+            files = storage_files_in(path)
+            hint = f"; it holds {len(files)} storage file(s): --salvage reads them" if files else ""
+            raise RecordingError(f"{path}: not a rosbag2 folder (no metadata.yaml){hint}")
+        reader = read_folder
     elif path.suffix in (".mcap", ".db3"):
-        reader = _read_file
+        reader = read_file
     else:
         raise RecordingError(f"{path}: not a bag (expected a rosbag2 folder, .mcap or .db3 file)")
     try:
-        return reader(path, select)
+        bag = reader(path, select, salvage)
+    except DamagedBagError:
+        raise
     except RecordingError as exc:
-        raise RecordingError(f"{path}: {exc}") from None
+        said = str(exc)  # named by its bag's path once
+        raise RecordingError(said if said.startswith(str(path)) else f"{path}: {said}") from None
     except Exception as exc:  # rosbags/apsw/struct raise many types on damaged files
         raise RecordingError(
             f"{path}: cannot read the bag, truncated or corrupted? ({type(exc).__name__}: {exc})"
         ) from None
+    bag.damages = note + bag.damages
+    return bag
 
 
 # --------------------------------------------------------------------------- decoding
@@ -367,12 +195,26 @@ def _align(bag: RawBag, prefix: str) -> WheelSeries:
         "reader_fallback": bag.fallback,
         "messages_read": bag.messages_read,
         "messages_announced": bag.message_count,
+        "damages": [d.describe() for d in bag.damages],
     }
     return series
 
 
+def wheel_select(wheels: Sequence[str] | None = None) -> Select:
+    """The topics ``read_recording`` reads: the wheel channels of ``wheels`` (None: every
+    prefix)."""
+    wanted = set(wheels) if wheels is not None else None
+
+    def select(topic: str) -> bool:
+        prefix, _, channel = topic.rpartition("/")
+        wheel_channel = channel in REQUIRED_CHANNELS or channel in OPTIONAL_CHANNELS
+        return wheel_channel and (wanted is None or prefix in wanted)
+
+    return select
+
+
 def read_recording(
-    path: str | os.PathLike[str], *, wheels: Sequence[str] | None = None
+    path: str | os.PathLike[str], *, wheels: Sequence[str] | None = None, salvage: bool = False
 ) -> dict[str, WheelSeries]:
     """Every wheel of a recording as aligned samples (module docstring: the rules).
 
@@ -381,21 +223,16 @@ def read_recording(
     path : rosbag2 folder, ``.mcap`` or ``.db3`` file.
     wheels : prefixes to read (default: every complete wheel). A prefix asked for that is not a
         complete wheel is an error.
+    salvage : read a damaged or unclosed bag as ``read_raw`` does; each wheel's
+        ``meta["damages"]`` lists what was skipped.
 
     Raises
     ------
     RecordingError
-        Unreadable bag, no complete wheel (names what is missing), wrong type on a known topic.
+        Unreadable bag, no complete wheel (names what is missing), wrong type on a known topic;
+        ``DamagedBagError`` for a damaged bag read without ``salvage``.
     """
-    path = Path(path)
-    wanted = set(wheels) if wheels is not None else None
-
-    def select(topic: str) -> bool:
-        prefix, _, channel = topic.rpartition("/")
-        wheel_channel = channel in REQUIRED_CHANNELS or channel in OPTIONAL_CHANNELS
-        return wheel_channel and (wanted is None or prefix in wanted)
-
-    return wheels_from_raw(read_raw(path, select), wheels)
+    return wheels_from_raw(read_raw(path, wheel_select(wheels), salvage=salvage), wheels)
 
 
 def wheels_from_raw(bag: RawBag, wheels: Sequence[str] | None = None) -> dict[str, WheelSeries]:

@@ -2,10 +2,11 @@
 
 Written: rosbag2 version 9 folders (MCAP by default, sqlite3 on request), or a lone ``.mcap`` /
 ``.db3`` file when the target path has that suffix. MCAP with the vectorised writer of
-``mcap_write`` (+ metadata.yaml version 9), sqlite3 and streaming (``BagWriter``) through
-rosbags' Writer; always into a temp folder beside the target, then renamed. ``write_recording``
-uses a wheel's ``meta["t_ns"]`` when it still matches ``t``, so a read/write round trip keeps
-stamps to the nanosecond.
+``mcap_write`` (+ metadata.yaml version 9), sqlite3 through rosbags' Writer, streaming
+(``BagWriter``) through the storages of ``streams`` (MCAP: this package's streaming writer);
+always into a temp folder beside the target, then renamed. ``write_recording`` uses a wheel's
+``meta["t_ns"]`` when it still matches ``t``, so a read/write round trip keeps stamps to the
+nanosecond.
 """
 
 from __future__ import annotations
@@ -17,16 +18,17 @@ import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from tire_model_ros.atomic import replace_path
 from tire_model_ros.recording import cdr
-from tire_model_ros.recording.mcap_write import Batch, write_mcap
-from tire_model_ros.recording.read import storage_of
+from tire_model_ros.recording.mcap_write import CHUNK_BYTES, Batch, write_mcap
+from tire_model_ros.recording.metadata import TopicStats, rosbag2_metadata
+from tire_model_ros.recording.raw import storage_of
 from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.recording.streams import STORAGES
 from tire_model_ros.vocabulary import (
     FLUID_PRESSURE,
     NS_PER_S,
@@ -36,9 +38,6 @@ from tire_model_ros.vocabulary import (
     VECTOR3_STAMPED,
     WRENCH_STAMPED,
 )
-
-if TYPE_CHECKING:
-    from rosbags.interfaces import Connection
 
 
 def _stamps_ns(w: WheelSeries) -> np.ndarray:
@@ -93,18 +92,24 @@ class BagWriter:
     ``close()``; ``abort()`` (or an exception inside ``with``) leaves ``path`` untouched.
 
     ``path`` with a ``.mcap`` / ``.db3`` suffix becomes a lone storage file, else a rosbag2
-    folder (metadata.yaml version 9).
+    folder (metadata.yaml version 9). The storage (``streams.STORAGES``) keeps what was written
+    safe from a SIGKILL up to its last flush period if ``flush_due()`` is called often: the temp
+    folder ``.<name>.<random>.tmp`` then holds a bag folder that ``read_raw(...,
+    salvage=True)`` reads (given the temp folder, or ``path`` itself).
     """
 
     def __init__(
-        self, path: str | os.PathLike[str], *, overwrite: bool = False, storage: str = "mcap"
+        self,
+        path: str | os.PathLike[str],
+        *,
+        overwrite: bool = False,
+        storage: str = "mcap",
+        chunk_bytes: int = CHUNK_BYTES,
     ) -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-
         self.path = Path(path)
         self.lone = self.path.suffix in (".mcap", ".db3")
         self.storage = storage_of(self.path) if self.lone else storage
-        if self.storage not in ("mcap", "sqlite3"):
+        if self.storage not in STORAGES:
             raise ValueError(f"storage must be 'mcap' or 'sqlite3', got {self.storage!r}")
         if (self.path.exists() or self.path.is_symlink()) and not overwrite:
             raise FileExistsError(f"{self.path}: exists already (use overwrite=True / --force)")
@@ -113,30 +118,42 @@ class BagWriter:
             tempfile.mkdtemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
         )
         self.bag = self.tmpdir / (self.path.stem if self.lone else self.path.name)
-        plugin = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}[self.storage]
-        self.writer = Writer(self.bag, version=9, storage_plugin=plugin)
-        self.connections: dict[str, Connection] = {}
-        self.counts: dict[str, int] = {}
+        self.topics: dict[str, tuple[str, list[int]]] = {}  # type, [count, first, last]
         self.closed = False
         try:
-            self.writer.open()
+            self.out = STORAGES[self.storage](self.bag, chunk_bytes)
         except BaseException:
             shutil.rmtree(self.tmpdir, ignore_errors=True)
             raise
 
-    def add_topic(self, topic: str, msgtype: str) -> None:
-        """Declare a topic (once; its type must be in the ROS 2 Jazzy typestore)."""
-        if topic in self.connections:
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages written per topic."""
+        return {t: stats[0] for t, (_, stats) in self.topics.items()}
+
+    def add_topic(self, topic: str, msgtype: str, msgdef: str | None = None) -> None:
+        """Declare a topic (once). ``msgdef``: the type's definition text (ros2msg); default
+        from the ROS 2 Jazzy typestore, which must then hold the type."""
+        if topic in self.topics:
             raise ValueError(f"topic {topic} added twice")
-        self.connections[topic] = self.writer.add_connection(
-            topic, msgtype, typestore=cdr.typestore()
-        )
-        self.counts[topic] = 0
+        if msgdef is None:
+            msgdef = cdr.typestore().generate_msgdef(msgtype, ros_version=2)[0]
+        self.out.add_topic(topic, msgtype, msgdef)
+        self.topics[topic] = (msgtype, [0, 0, 0])
 
     def write(self, topic: str, log_ns: int, data: bytes | memoryview) -> None:
         """One message: CDR bytes, log time [ns] (this package uses the header stamp)."""
-        self.writer.write(self.connections[topic], int(log_ns), data)
-        self.counts[topic] += 1
+        log_ns = int(log_ns)
+        self.out.write(topic, log_ns, data)
+        stats = self.topics[topic][1]
+        stats[1] = min(stats[1], log_ns) if stats[0] else log_ns
+        stats[2] = max(stats[2], log_ns)
+        stats[0] += 1
+
+    def flush_due(self) -> None:
+        """Put what was written on disk if the storage's flush period has passed (call it
+        often, e.g. from a spin loop: messages alone flush only while they come)."""
+        self.out.flush_due()
 
     def close(self) -> None:
         """Finish the bag and move it to ``path`` (replacing it if allowed at creation)."""
@@ -144,10 +161,8 @@ class BagWriter:
             return
         self.closed = True
         try:
-            self.writer.close()
-            ext = ".db3" if self.storage == "sqlite3" else ".mcap"
-            new = self.bag / f"{self.bag.name}{ext}" if self.lone else self.bag
-            replace_path(new, self.path)
+            self.out.close([TopicStats(t, mt, *st) for t, (mt, st) in self.topics.items()])
+            replace_path(self.out.file if self.lone else self.bag, self.path)
         finally:
             shutil.rmtree(self.tmpdir, ignore_errors=True)
 
@@ -157,7 +172,7 @@ class BagWriter:
             return
         self.closed = True
         with contextlib.suppress(Exception):  # the temp folder is removed anyway
-            self.writer.close()
+            self.out.abort()
         shutil.rmtree(self.tmpdir, ignore_errors=True)
 
     def __enter__(self) -> BagWriter:
@@ -216,46 +231,10 @@ def write_topics(
             writer.write(b.topic, int(b.log_ns[m]), b.rows[m].tobytes())
 
 
-def _rosbag2_metadata(file_name: str, batches: Sequence[Batch]) -> dict[str, Any]:
-    """metadata.yaml content (version 9), as rosbag2 / rosbags write it."""
-    ts = cdr.typestore()
-    all_stamps = [b.log_ns for b in batches if len(b.log_ns)]
-    start = int(min(s.min() for s in all_stamps)) if all_stamps else 0
-    duration = int(max(s.max() for s in all_stamps)) - start if all_stamps else 0
-    count = int(sum(len(b.log_ns) for b in batches))
-    return {
-        "version": 9,
-        "storage_identifier": "mcap",
-        "relative_file_paths": [file_name],
-        "duration": {"nanoseconds": duration},
-        "starting_time": {"nanoseconds_since_epoch": start},
-        "message_count": count,
-        "topics_with_message_count": [
-            {
-                "topic_metadata": {
-                    "name": b.topic,
-                    "type": b.msgtype,
-                    "serialization_format": "cdr",
-                    "offered_qos_profiles": [],
-                    "type_description_hash": ts.hash_rihs01(b.msgtype),
-                },
-                "message_count": len(b.log_ns),
-            }
-            for b in batches
-        ],
-        "compression_format": "",
-        "compression_mode": "",
-        "files": [
-            {
-                "path": file_name,
-                "starting_time": {"nanoseconds_since_epoch": start},
-                "duration": {"nanoseconds": duration},
-                "message_count": count,
-            }
-        ],
-        "custom_data": None,
-        "ros_distro": "jazzy",
-    }
+def _stats(b: Batch) -> TopicStats:
+    n = len(b.log_ns)
+    first, last = (int(b.log_ns.min()), int(b.log_ns.max())) if n else (0, 0)
+    return TopicStats(b.topic, b.msgtype, n, first, last)
 
 
 def _write_fast_mcap(
@@ -270,7 +249,7 @@ def _write_fast_mcap(
         raise FileExistsError(f"{path}: exists already (use overwrite=True / --force)")
     lone = path.suffix == ".mcap"
     file_name = path.name if lone else f"{path.name}.mcap"
-    info = _rosbag2_metadata(file_name, batches)
+    info = rosbag2_metadata(file_name, [_stats(b) for b in batches])
     path.parent.mkdir(parents=True, exist_ok=True)
     tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
     try:

@@ -98,14 +98,17 @@ def schedule(bag: RawBag) -> Schedule:
 
 
 def load_schedule(
-    path: str | os.PathLike[str], wheels: Sequence[str] | None = None, measured: bool = False
+    path: str | os.PathLike[str],
+    wheels: Sequence[str] | None = None,
+    measured: bool = False,
+    salvage: bool = False,
 ) -> Schedule:
-    """Read the bag's topics to play and order them."""
-    listing = read_raw(path, lambda _t: False)  # topic table only
+    """Read the bag's topics to play and order them (``salvage``: see ``read_raw``)."""
+    listing = read_raw(path, lambda _t: False, salvage=salvage)  # topic table only
     chosen = set(select_topics(list(listing.all_topics), wheels, measured))
     if not chosen:
         raise RecordingError(f"{path}: no input topics to play (no P/slip topic)")
-    return schedule(read_raw(path, lambda t: t in chosen))
+    return schedule(read_raw(path, lambda t: t in chosen, salvage=salvage))
 
 
 def play(
@@ -115,6 +118,7 @@ def play(
     loop: bool = False,
     wheels: Sequence[str] | None = None,
     measured: bool = False,
+    salvage: bool = False,  # read_raw(salvage=True): what can be trusted, its report logged
     queue: int = 1000,
     wait_subscribers_s: float = 2.0,
     should_stop: Callable[[], bool] = lambda: False,
@@ -133,7 +137,10 @@ def play(
 
     if not rate >= 0 or not np.isfinite(rate):
         raise ValueError(f"--rate must be >= 0, got {rate}")
-    sched = load_schedule(path, wheels, measured)
+    sched = load_schedule(path, wheels, measured, salvage)
+    if salvage:
+        for line in sched.bag.salvage_report():
+            log(f"salvage: {line}")
     qos = QoSProfile(
         history=HistoryPolicy.KEEP_LAST, depth=queue, reliability=ReliabilityPolicy.RELIABLE
     )

@@ -93,6 +93,7 @@ def record(
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     writer = BagWriter(out, overwrite=overwrite, storage=storage)
+    log(f"writing into {writer.tmpdir} until stopped (killed: `tire-model info --salvage {out}`)")
     context = rclpy.Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("tire_model_recorder", context=context)
@@ -120,6 +121,9 @@ def record(
             if end is not None and time.monotonic() >= end:
                 break
             executor.spin_once(timeout_sec=0.05)
+            # complete chunks on disk at least every mcap_stream.FLUSH_S: a recorder killed
+            # with SIGKILL loses only that; `tire-model info --salvage OUT -o BAG` reads the rest
+            writer.flush_due()
         writer.close()
         log(f"recorded {total['n']} messages to {out}")
         return dict(writer.counts)
