@@ -31,8 +31,13 @@ those stalls are gone.
 
 Target: 4 wheels at 1 kHz each, zero drops, p99 <= 2 ms, latency within 1.5x the echo node's.
 
+Loaded machine (``--hog``, on by default): the 4 wheels x 1 kHz step again, node and echo node
+alike, with a CPU hog (a busy loop at normal priority, started and stopped by this bench) taking
+the other core's worth of CPU, beside the quiet figures of the same run; the target there is
+zero loss.
+
     .venv/bin/python bench/bench_node.py [--rates 250,500,1000,2000,4000] [--seconds 2]
-        [--rt-priority 10] [--server-cpus 1] [--driver-cpus 0] [--depth 100]
+        [--rt-priority 10] [--server-cpus 1] [--driver-cpus 0] [--depth 100] [--no-hog]
 """
 
 from __future__ import annotations
@@ -302,6 +307,39 @@ def sustained(rows: list[dict]) -> dict | None:
     return best
 
 
+class Hog:
+    """A CPU hog: one busy-looping process at normal priority (the other core fully loaded)."""
+
+    def __enter__(self) -> Hog:
+        import subprocess
+
+        self.proc = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.proc.kill()
+        self.proc.wait(10)
+
+
+def loaded_summary(results: dict, quiet_key: tuple, hog_key: tuple) -> None:
+    """4 wheels x 1 kHz, quiet and with the hog, node and echo, from the same run."""
+    print("\n4 wheels x 1 kHz, quiet and with a CPU hog on the other core (same run):")
+    print(f"{'':6} {'load':>5} {'drops':>6} {'p50 ms':>7} {'p99 ms':>7} {'p99/echo':>8}")
+    for load, key in (("quiet", quiet_key), ("hog", hog_key)):
+        rows = {k: [r for r in results.get((k, *key), []) if r["rate"] == 1000.0] for k in
+                ("node", "echo")}  # fmt: skip
+        for kind in ("echo", "node"):
+            if rows[kind]:
+                r = rows[kind][0]
+                ratio = r["p99"] / rows["echo"][0]["p99"] if rows["echo"] else float("nan")
+                print(f"{kind:6} {load:>5} {r['drops']:6d} {r['p50']:7.3f} {r['p99']:7.3f} "
+                      f"{ratio:8.2f}")  # fmt: skip
+    node = [r for r in results.get(("node", *hog_key), []) if r["rate"] == 1000.0]
+    if node:
+        verdict = "MET" if node[0]["drops"] == 0 else "NOT MET"
+        print(f"Target zero loss at 4 wheels x 1 kHz with the hog: {node[0]['drops']} -> {verdict}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rates", default="250,500,1000,2000,3000,4000,6000,8000,12000")
@@ -317,6 +355,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--depth", type=int, default=100, help="reliable queue depth of driver, node and echo"
     )
+    ap.add_argument("--no-hog", action="store_true", help="skip the loaded-machine run")
     ap.add_argument("--echo", nargs="*", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.echo is not None:
@@ -329,13 +368,22 @@ def main(argv: list[str] | None = None) -> int:
         f"queue depth {args.depth}"
     )
     print(HEADER)
-    for n in (int(x) for x in args.wheels.split(",")):
+    wheel_counts = [int(x) for x in args.wheels.split(",")]
+    for n in wheel_counts:
         prefixes = ["/wheel"] if n == 1 else list(CAR[:n])
         for kind in args.servers.split(","):
             results[(kind, n)] = bench(kind, prefixes, rates, args)
+    if not args.no_hog and 4 in wheel_counts:
+        print("\nwith a CPU hog:")
+        print(HEADER)
+        with Hog():
+            for kind in args.servers.split(","):
+                results[(kind, 4, "hog")] = bench(kind, list(CAR), [1000.0], args)
     print("\nSummary: highest rate per wheel with zero drops (and its latency)")
     print(HEADER)
-    for rows in results.values():
+    for key, rows in results.items():
+        if "hog" in key:
+            continue
         best = sustained(rows)
         print(_fmt(best) if best else f"{rows[0]['server'] if rows else '?':6} none sustained")
     target = [r for r in results.get(("node", 4), []) if r["rate"] == 1000.0]
@@ -351,6 +399,8 @@ def main(argv: list[str] | None = None) -> int:
             line += f"; echo drops {e['drops']}, p50 {e['p50']:.3f} ms, p99 {e['p99']:.3f} ms"
         verdict = t["drops"] == 0 and t["p99"] <= 2.0 and not ratio > 1.5
         print(f"{line}; p99 node/echo {ratio:.2f} -> {'MET' if verdict else 'NOT MET'}")
+    if not args.no_hog and 4 in wheel_counts:
+        loaded_summary(results, (4,), (4, "hog"))
     return 0
 
 

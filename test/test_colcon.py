@@ -1,10 +1,13 @@
 """The package builds with colcon and the installed node runs as ``ros2 run`` would start it.
 
-A copy of the package sources goes to a temporary workspace; ``colcon build`` (the venv's
-colcon) installs it; the test then executes ``install/tire_model_ros/lib/tire_model_ros/
-tire_model_node`` with the workspace environment (PYTHONPATH to the installed site-packages,
-AMENT_PREFIX_PATH to the install prefix) and no tir_file parameter, so the node must find the
-installed ``share/tire_model_ros/config/default.tir`` through the ament index.
+A copy of the package sources goes to a temporary workspace, with the numba cache this source
+tree holds (a developer's tree); ``colcon build`` (the venv's colcon) installs it, and its
+``setup.py install`` makes the kernels ready beside the installed modules (the tree's cache
+copied for the same sources, else compiled). The test then executes
+``install/tire_model_ros/lib/tire_model_ros/tire_model_node`` with the workspace environment
+(PYTHONPATH to the installed site-packages, AMENT_PREFIX_PATH to the install prefix) and no
+tir_file parameter, so the node must find the installed ``share/tire_model_ros/config/
+default.tir`` through the ament index, and start without compiling (no first-start notice).
 """
 
 from __future__ import annotations
@@ -22,15 +25,17 @@ from conftest import ROOT
 from ros_util import NodeProcess, RosClient, exited_cleanly, ros_env, wait_for
 
 from tire_model_ros.model import TireModel
+from tire_model_ros.model.startup import COMPILE_NOTICE
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(120)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
 
 SOURCES = ("setup.py", "setup.cfg", "package.xml", "resource", "config", "tire_model_ros")
 
 
 def _copy_package(dest: Path) -> None:
+    """The sources and their numba cache, with their times (numba's key)."""
     dest.mkdir(parents=True)
-    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc")
+    ignore = shutil.ignore_patterns("*.pyc")
     for name in SOURCES:
         src = ROOT / name
         if src.is_dir():
@@ -39,52 +44,32 @@ def _copy_package(dest: Path) -> None:
             shutil.copy2(src, dest / name)
 
 
-def _colcon_build(ws: Path) -> Path:
+def _colcon_build(ws: Path) -> tuple[Path, str]:
     colcon = Path(sys.executable).parent / "colcon"
     cmd = [str(colcon), "--log-base", str(ws / "log"), "build", "--base-paths", str(ws / "src"),
-           "--build-base", str(ws / "build"), "--install-base", str(ws / "install")]  # fmt: skip
-    res = subprocess.run(cmd, cwd=ws, capture_output=True, text=True, timeout=90)
+           "--build-base", str(ws / "build"), "--install-base", str(ws / "install"),
+           "--event-handlers", "console_direct+"]  # fmt: skip
+    # a cache that does not match compiles the kernels here: minutes on a busy machine
+    res = subprocess.run(cmd, cwd=ws, capture_output=True, text=True, timeout=480)
     assert res.returncode == 0, res.stdout + res.stderr
-    return ws / "install" / "tire_model_ros"
-
-
-def _seed_numba_cache(site: Path) -> int:
-    """Copy the source tree's numba cache beside the installed modules.
-
-    Numba keys its cache on the source's mtime and size; setuptools keeps the mtime only to
-    the second, so the installed .py files get the sources' exact mtime back first. Then numba
-    reuses the cache instead of compiling every kernel again (20-40 s on a loaded 2-core
-    machine); if anything does not match, numba compiles and the test only takes longer.
-    """
-    for py in (site / "tire_model_ros").rglob("*.py"):
-        src = ROOT / py.relative_to(site)
-        if src.is_file() and src.read_bytes() == py.read_bytes():
-            st = src.stat()
-            os.utime(py, ns=(st.st_atime_ns, st.st_mtime_ns))
-    n = 0
-    pycache = (ROOT / "tire_model_ros").rglob("__pycache__/*")
-    # the .sha256 stamp of model/jit.py's cache guard too, or the guard drops the copied cache
-    for cached in (f for f in pycache if f.suffix in (".nbi", ".nbc", ".sha256")):
-        rel = cached.relative_to(ROOT)
-        dest = site / rel
-        if dest.parent.parent.is_dir():
-            dest.parent.mkdir(exist_ok=True)
-            shutil.copy2(cached, dest)
-            n += 1
-    return n
+    return ws / "install" / "tire_model_ros", res.stdout + res.stderr
 
 
 def test_colcon_build_and_run_installed_node(tmp_path):
+    # the source tree's cache holds the node's kernels (make venv compiled them)
+    TireModel.from_file(ROOT / "config" / "default.tir").evaluate_one(
+        5000.0, 0.05, 0.05, 0.0, 16.6, 2.6e5, 25.0
+    )
     _copy_package(tmp_path / "src" / "tire_model_ros")
-    prefix = _colcon_build(tmp_path)
+    prefix, build_log = _colcon_build(tmp_path)
+    assert "making the Magic Formula kernels ready" in build_log, build_log
     exe = prefix / "lib" / "tire_model_ros" / "tire_model_node"
     share_tir = prefix / "share" / "tire_model_ros" / "config" / "default.tir"
     assert os.access(exe, os.X_OK) and share_tir.is_file()
     assert prefix / "share" / "ament_index" / "resource_index" / "packages" / "tire_model_ros"
     site = next(prefix.glob("lib/python3*/site-packages"))
-    # Make sure the source tree's cache holds the node's kernel, then give it to the install.
-    TireModel.from_file(share_tir).evaluate_one(5000.0, 0.05, 0.05, 0.0, 16.6, 2.6e5, 25.0)
-    _seed_numba_cache(site)
+    cache = site / "tire_model_ros" / "model" / "__pycache__"
+    assert list(cache.glob("kernel.evaluate_point-*.nbi")), "no kernels compiled at install"
 
     client = RosClient("test_colcon_client")
     env = ros_env(
@@ -102,6 +87,7 @@ def test_colcon_build_and_run_installed_node(tmp_path):
         # The installed package and the installed default.tir, found through the ament index.
         proc.wait_log("models:", 10)
         log = proc.log()
+        assert COMPILE_NOTICE not in log, log  # ready from the install, not compiled now
         assert f"from {site / 'tire_model_ros'}" in log, log
         assert f"shared={share_tir.resolve()}" in log, log
 

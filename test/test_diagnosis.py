@@ -351,10 +351,17 @@ def test_an_effect_is_stable_when_two_fits_do_the_same_to_the_forces():
 def test_improved_model_run_forward_as_the_node_runs_it_keeps_the_improvement(model):
     """The improved .tir and its effects file, run sample by sample as the node runs them
     (model.states.EffectState: hidden nodes driven by the model's own forces, no temperature
-    channel), on the whole recorded session: its held-out error is close to the diagnosis'
-    own improved model and far below the baseline's (``make demo`` does this through the real
-    node)."""
+    channel), on the whole recorded session.
+
+    On the diagnosis' own view of the inputs (slips smoothed without lag) the node gives the
+    diagnosis' improved forces; on the raw recorded inputs, as the node gets them, it keeps
+    the improvement over the file's model run the same way (the slip noise, through the slip
+    stiffness, adds to both). ``make demo`` does this through the real node.
+    """
+    from dataclasses import replace
+
     from tire_model_ros.demo import offline
+    from tire_model_ros.diagnosis.prepare import prepare_wheel
 
     wheels, _ = _session(model, {"heating": True}, omit=["temperature"])
     diag = diagnose(wheels, model, seed=0)
@@ -362,12 +369,19 @@ def test_improved_model_run_forward_as_the_node_runs_it_keeps_the_improvement(mo
     w, prefix = wheels[0], wheels[0].prefix
     fx = diag.node_effects().for_wheel(prefix)
     assert fx is not None and fx.thermal is not None and fx.thermal_slow is not None
-    node = offline(diag.improved_model, fx, w)
     held = diag.heldout_mask[prefix]
-    for k, ch in enumerate(("Fx", "Fy")):
-        meas = getattr(w, ch)[held]
-        node_rmse = float(np.sqrt(np.mean((node[held, k] - meas) ** 2)))
-        base = diag.fit["heldout_baseline"][ch]["rmse"]
-        improved = diag.fit["heldout_improved"][ch]["rmse"]
-        assert node_rmse < 0.6 * base, (ch, node_rmse, base)
-        assert node_rmse < 1.3 * improved, (ch, node_rmse, improved)
+    seen = prepare_wheel(w, model, np.random.default_rng(0)).inputs
+    smooth = replace(w, **{k: seen[a] for k, a in (("kappa", "kappa"), ("alpha", "alpha"),
+                                                   ("gamma", "gamma"), ("Fz", "Fz"))})  # fmt: skip
+
+    def rss(out: np.ndarray, ref: dict[str, np.ndarray]) -> float:
+        return float(np.sqrt(sum(np.mean((out[held, k] - ref[ch][held]) ** 2)
+                                 for k, ch in enumerate(("Fx", "Fy")))))  # fmt: skip
+
+    meas = {"Fx": w.Fx, "Fy": w.Fy}
+    improved = {ch: diag.predictions[prefix][f"improved_{ch}"] for ch in ("Fx", "Fy")}
+    node = offline(diag.improved_model, fx, smooth)
+    assert rss(node, improved) < 0.1 * rss(node, meas), "the node computes another model"
+    raw_node = rss(offline(diag.improved_model, fx, w), meas)
+    raw_base = rss(offline(model, None, w), meas)
+    assert raw_node < 0.5 * raw_base, (raw_node, raw_base)

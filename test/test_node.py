@@ -8,7 +8,6 @@ on the same inputs.
 
 from __future__ import annotations
 
-import itertools
 import math
 import os
 import re
@@ -26,7 +25,7 @@ from tire_model_ros.model import TireModel
 from tire_model_ros.ros import realtime
 from tire_model_ros.vocabulary import NODE_INPUTS
 from tire_model_ros.wheel import params as pn
-from tire_model_ros.wheel.state import Nominal, WheelState
+from tire_model_ros.wheel.state import Nominal
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 
@@ -35,7 +34,14 @@ BOOK_TIR = TIR_DIR / "PacejkaBook_Defaults.tir"
 N1 = "/tire1"
 N4 = "/tire_model_node"
 CAR = ("/car/fl", "/car/fr", "/car/rl", "/car/rr")
-_stamps = itertools.count(1)
+_clock = {"ns": 1_000_000_000}
+
+
+def next_stamp(step_s: float = 0.001) -> tuple[int, int]:
+    """(sec, nanosec) of a fresh header stamp, ``step_s`` after the last one: inputs and slips
+    share this stamp clock, so the node aligns them in the order they were sent."""
+    _clock["ns"] += round(step_s * 1e9)
+    return divmod(_clock["ns"], 1_000_000_000)
 
 
 # ------------------------------------------------------------------ ROS-free parts
@@ -63,29 +69,6 @@ def test_realtime_refuses_what_it_cannot_apply():
     assert "not all available" in realtime.apply(0, [max(os.sched_getaffinity(0)) + 1])[0]
     assert realtime.apply(0, []) == []
     assert (os.sched_getscheduler(0), os.sched_getaffinity(0)) == before
-
-
-def test_wheel_state_fallbacks_and_rejections():
-    model = TireModel.from_file(DEFAULT_TIR)
-    nom = Nominal.from_params(model.params)
-    assert (nom.Fz, nom.p, nom.T, nom.Vx) == (6752.0, 260000.0, 25.0, 16.6)
-    w = WheelState("wheel", "wheel")
-    to = dict.fromkeys(NODE_INPUTS, 1.0)
-    out, events = w.compute(0.1, 0.0, 0.0, 0.0, model, nom, to, True)
-    assert out[2] == nom.Fz and events and events[0].startswith("fallback.load")
-    assert w.set_load(math.nan, 0.0) is not None and w.load.value is None
-    assert w.set_load(3000.0, 0.0) is None
-    assert w.set_pressure(-1.0, 0.0) is not None and w.set_temperature(-300.0, 0.0) is not None
-    out, _ = w.compute(0.1, 0.0, 0.0, 0.5, model, nom, to, True)
-    assert out[2] == 3000.0
-    out, events = w.compute(0.1, 0.0, 0.0, 2.0, model, nom, to, True)  # load now stale
-    assert out[2] == nom.Fz and w.load.fallback_stale == 1
-    assert w.compute(math.nan, 0.0, 0.0, 2.0, model, nom, to, True)[0] is None
-    skipped = w.compute(0.1, 0.0, 0.0, 2.0, model, nom, to, True, skip_without_load=True)
-    assert skipped[0] is None and w.skipped_no_load == 1
-    c = w.counters()
-    assert c["slip_in"] == 5 and c["forces_out"] == 3 and c["slip_rejected"] == 1
-    assert c["load.rejected"] == 1 and c["pressure.rejected"] == 1
 
 
 def test_cdr_fast_path_agrees_with_rclpy_serialisation():
@@ -164,28 +147,36 @@ class Wheel:
     def pubs(self):
         return [self.slip, self.load, self.pressure, self.temperature, self.velocity]
 
-    def send_inputs(self, Fz=None, p=None, T=None, Vx=None) -> None:
+    def send_inputs(self, Fz=None, p=None, T=None, Vx=None) -> int:
+        """Publish inputs stamped before every slip sent after them; returns the stamp [s]."""
         _, Wrench, Fluid, Temp, Twist = self.types
+        sec, nsec = next_stamp()
+        msgs = []
         if Fz is not None:
             m = Wrench()
             m.wrench.force.z = float(Fz)
-            self.load.publish(m)
+            msgs.append((self.load, m))
         if p is not None:
-            self.pressure.publish(Fluid(fluid_pressure=float(p)))
+            msgs.append((self.pressure, Fluid(fluid_pressure=float(p))))
         if T is not None:
-            self.temperature.publish(Temp(temperature=float(T)))
+            msgs.append((self.temperature, Temp(temperature=float(T))))
         if Vx is not None:
             m = Twist()
             m.twist.linear.x = float(Vx)
-            self.velocity.publish(m)
+            msgs.append((self.velocity, m))
+        for pub, m in msgs:
+            m.header.stamp.sec, m.header.stamp.nanosec = sec, nsec
+            pub.publish(m)
+        return sec
 
-    def send_slips(self, slips) -> list[tuple[int, int]]:
-        """Publish slips (kappa, alpha, gamma) with fresh stamps; returns the stamps."""
+    def send_slips(self, slips, step_s: float = 0.001) -> list[tuple[int, int]]:
+        """Publish slips (kappa, alpha, gamma) with fresh stamps ``step_s`` apart; returns the
+        stamps."""
         Vector3Stamped = self.types[0]
         stamps = []
         for kappa, alpha, gamma in slips:
             m = Vector3Stamped()
-            m.header.stamp.sec, m.header.stamp.nanosec = next(_stamps), 7
+            m.header.stamp.sec, m.header.stamp.nanosec = next_stamp(step_s)
             m.header.frame_id = "test"
             m.vector.x, m.vector.y, m.vector.z = float(kappa), float(alpha), float(gamma)
             self.slip.publish(m)
@@ -428,7 +419,8 @@ def test_coefficient_descriptors(client, node1):
     req = DescribeParameters.Request(names=["FNOMIN", "PDY1", "timeout.load"])
     d = client.call(DescribeParameters, f"{N1}/describe_parameters", req).descriptors
     assert "load" in d[0].description.lower() and d[0].floating_point_range[0].from_value == 0.0
-    assert d[1].description and not d[1].floating_point_range  # no physical bound on PDY1
+    rng = d[1].floating_point_range[0]  # |mu_y| <= 10 (every coefficient has a range)
+    assert d[1].description and (rng.from_value, rng.to_value) == (-10.0, 10.0)
     assert d[2].floating_point_range[0].from_value == 0.0
 
 
@@ -447,6 +439,9 @@ def test_bad_values_rejected_outputs_unchanged(client, node1):
         ({"NOPE1": 1.0}, False, ""),  # not a parameter of the node
         ({"wheel.PDY1": 1.0}, False, ""),  # the wheel has no own model
         ({"limits": 3}, False, ""),
+        ({"PDY1": 1e9}, False, ""),  # beyond |mu_y| <= 10: refused by its range
+        # each within its range, swapped: NaN Fx above 1.4 FNOMIN; the operating grid finds it
+        ({"PKX3": 1747.3832, "RBY4": -0.11254}, True, "not a tyre on its operating range"),
     ]:
         res = client.set_parameters(N1, values, atomically=atomic)
         results = [res] if atomic else res
@@ -480,6 +475,25 @@ def test_switch_tir_file_and_bad_file(client, node1, tmp_path):
         assert not res[0].successful and word in res[0].reason, res[0].reason
     assert client.get_parameters(N1, ["tir_file"])["tir_file"] == str(FSAE_TIR)
     check(wheel, fsae, inputs, slips)
+
+
+def test_lenient_reads_what_strict_refuses(client, node1, tmp_path):
+    _, wheel = node1
+    cut = tmp_path / "no_pky4.tir"
+    cut.write_text(re.sub(r"^PKY4\s*=.*\n", "", DEFAULT_TIR.read_text(), flags=re.M))
+    res = client.set_parameters(N1, {"tir_file": str(cut)})
+    assert not res[0].successful and "PKY4" in res[0].reason, res[0].reason
+    res = client.set_parameters(N1, {"lenient": True, "tir_file": str(cut)}, atomically=True)
+    assert res.successful, res.reason
+    try:
+        model = TireModel.from_file(cut, lenient=True)
+        assert model.params["PKY4"] == 2.0  # the documented default
+        wheel.settle(model, INPUTS1)
+        check(wheel, model, INPUTS1, random_slips(9, 10))
+    finally:
+        res = client.set_parameters(N1, {"lenient": False, "tir_file": str(DEFAULT_TIR)},
+                                    atomically=True)  # fmt: skip
+        assert res.successful, res.reason
 
 
 def _edit(path: Path, key: str, value: float) -> None:
@@ -581,7 +595,7 @@ def test_stale_input_falls_back_to_nominal(client, node1):
     model = TireModel.from_file(DEFAULT_TIR)
     assert client.set_parameters(N1, {"timeout.velocity": 0.2})[0].successful
     wheel.send_inputs(Vx=4.0)
-    time.sleep(0.5)
+    next_stamp(0.5)  # the slips below are stamped 0.5 s later: stale in stamp time
     nominal = dict(INPUTS1, Vx=model.params["LONGVL"])
     check(wheel, model, nominal, random_slips(8, 5))
     t0 = time.time()
@@ -699,7 +713,7 @@ def test_effects_file_runs_hidden_states_live_and_bad_file_rejected(client, tmp_
         res = client.set_parameters("/tire_fx", {"effects_file": str(good)})
         assert res[0].successful, res[0].reason
         slips = [(0.1 * math.sin(i / 5), 0.12 * math.sin(i / 7), 0.0) for i in range(40)]
-        stamps = wheel.send_slips(slips)
+        stamps = wheel.send_slips(slips, step_s=1.0)  # 40 s of stamp time: the tread heats
         got = wheel.results(stamps)
         st, want = EffectState(fx), []
         for (sec, ns), (kappa, alpha, gamma) in zip(stamps, slips, strict=True):

@@ -16,6 +16,7 @@ from conftest import ROOT, TOOL
 from ros_util import exited_cleanly
 from series_util import NS, assert_same, random_wheel
 
+from tire_model_ros.delivery import PLAY, RECORD, account, parse_reports, report_line
 from tire_model_ros.recording import (
     RecordingError,
     WheelSeries,
@@ -61,6 +62,37 @@ def test_schedule_order_and_topic_choice(tmp_path):
     first = np.frombuffer(sched.raw_of(0), np.uint8)
     sec, nsec = first[4:12].copy().view("<u4")
     assert int(sec) * NS + int(nsec) == w.meta["t_ns"][0]
+
+
+def test_recorder_counts_publisher_sequence_gaps():
+    from tire_model_ros.ros.record import TopicCount
+
+    c = TopicCount()
+    for seq in (21, 22, 23, 26, 27):  # 20 sent before it listened, 24 and 25 lost on the way
+        c.seen(seq)
+    assert (c.gaps, c.publishers_seen) == (22, 1)
+    c.seen(1)  # a restarted publisher
+    c.seen(2)
+    assert (c.gaps, c.publishers_seen) == (22, 2)
+    c.seen(None)  # an rmw without sequence numbers: nothing to count
+    assert c.gaps == 22
+
+
+def test_account_explains_every_loss_or_says_how_much_it_cannot():
+    play = {"/w/slip": {"published": 100, "acknowledged": 1, "subscribers": 1}}
+    node = {"/w": {"slip_in": 100, "forces_out": 97, "slip_rejected": 2, "model_errors": 1}}
+    rec = {"/w/forces": {"recorded": 90, "gaps": 5, "ignored": 2, "publishers_seen": 1}}
+    acc = account("/w", play, node, rec)
+    assert acc.unexplained == 0 and "unexplained loss 0" in acc.text()
+    node_short = {"/w": {"slip_in": 96, "forces_out": 93, "slip_rejected": 2, "model_errors": 1}}
+    assert account("/w", play, node_short, rec).unexplained == 4 + 4  # before and after node
+    unacked = {"/w/slip": {"published": 100, "acknowledged": 0, "subscribers": 1}}
+    rec_ok = {"/w/forces": {"recorded": 86, "gaps": 5, "ignored": 2, "publishers_seen": 1}}
+    assert account("/w", unacked, node_short, rec_ok).unexplained == 0  # play said so
+    with pytest.raises(KeyError, match="record report of /w/forces"):
+        account("/w", play, node, {})
+    text = "noise\n" + report_line(PLAY, "/w/slip", play["/w/slip"]) + "\n"
+    assert parse_reports(text, PLAY) == play
 
 
 # ----------------------------------------------------------------------------- ROS
@@ -226,3 +258,37 @@ def test_record_duration_and_errors(tmp_path, ros_env):
         assert proc.returncode == 1 and message in proc.stderr, (args, proc.stderr)
         assert "Traceback" not in proc.stderr
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(90)
+def test_recorder_reports_what_never_reached_it_and_play_what_went_to_nobody(tmp_path, ros_env):
+    """20 forces published before the recorder listens, 30 after: it records 30 and reports
+    the 20 as missing (the publisher's sequence numbers). A play with no subscriber says that
+    its messages went to nobody."""
+    import ros_util
+    from geometry_msgs.msg import WrenchStamped
+
+    client = ros_util.RosClient("test_gap_client")
+    try:
+        pub = client.publisher(WrenchStamped, "/gap/forces")
+        for _ in range(20):
+            pub.publish(WrenchStamped())
+        log = tmp_path / "rec.log"
+        rec = start(["record", "-o", str(tmp_path / "gap"), "--wheels", "/gap", "--count", "30"],
+                    ros_env, log)  # fmt: skip
+        client.wait_matched([pub], 30)
+        for _ in range(30):
+            pub.publish(WrenchStamped())
+        out = finish(rec, log)
+    finally:
+        client.close()
+    got = parse_reports(out, RECORD)["/gap/forces"]
+    assert (got["recorded"], got["gaps"], got["ignored"]) == (30, 20, 0), out
+    assert "never reached the recorder" in out
+    write_recording(tmp_path / "src", [wheel("/w", 5, 1)])
+    done = subprocess.run([*TOOL, "play", str(tmp_path / "src"), "--wait", "0.2"], env=ros_env,
+                          cwd=ROOT, capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.returncode == 0 and "went to nobody" in done.stdout, done.stdout + done.stderr
+    assert parse_reports(done.stdout, PLAY)["/w/slip"] == {
+        "published": 5, "acknowledged": 1, "subscribers": 0}  # fmt: skip

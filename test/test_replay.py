@@ -1,5 +1,6 @@
 """The node on a recording: ``tire-model play`` into the node, ``tire-model record`` of its
-forces, compared with ``tire-model eval`` on the same inputs. Real processes, real bags."""
+forces, compared with ``tire-model eval`` on the same inputs; every message accounted for by
+the three stages' reports. Real processes, real bags."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import pytest
 import ros_util
 from conftest import DEFAULT_TIR, TOOL
 
+from tire_model_ros.delivery import NODE, PLAY, RECORD, account, parse_reports
 from tire_model_ros.recording import decode_topic, read_raw, read_recording, write_recording
 from tire_model_ros.rig import simulate_session
 
@@ -46,16 +48,23 @@ def test_node_on_played_recording_reproduces_eval(tmp_path):
     record_args = ["-o", str(tmp_path / "forces"), "--wheels", PREFIX, "--count", str(len(rec))]
     recorder = ros_util.NodeProcess([*TOOL, "record", *record_args, "--duration", "150"], env)
     try:
-        ros_util.wait_for(lambda: "wheels" in node.log(), 90, "the node to start")
-        ros_util.wait_for(lambda: "recording" in recorder.log(), 60, "the recorder to start")
+        ros_util.wait_for(lambda: "recording" in recorder.log(), 90, "the recorder to start")
+        # the recorder matched to the node's output: no force published before it listens
+        node.wait_log(f"{PREFIX}/forces: 1 subscriber(s) matched", 90)
         cmd = [*TOOL, "play", str(tmp_path / "run"), "--rate", "4", "--wait", "20"]
         play = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
         assert ros_util.exited_cleanly(play.returncode, play.stderr), play.stderr
         recorder.proc.wait(timeout=60)
     finally:
-        node.stop()
+        node_rc, node_log = node.stop()
         rc, log = recorder.stop()
     assert ros_util.exited_cleanly(rc, log), log  # it stopped by itself after --count messages
+    assert ros_util.exited_cleanly(node_rc, node_log), node_log
+    # every slip played is accounted for by the three stages' own reports, and none is lost
+    acc = account(PREFIX, parse_reports(play.stdout, PLAY), parse_reports(node_log, NODE),
+                  parse_reports(log, RECORD))  # fmt: skip
+    assert acc.unexplained == 0, acc.text()
+    assert acc.played == acc.recorded == len(rec), acc.text()
     ch = decode_topic(read_raw(tmp_path / "forces"), f"{PREFIX}/forces")
     t_ns = rec.meta["t_ns"]
     assert np.array_equal(ch.stamp_ns, t_ns), "one forces message per slip, with its stamp"

@@ -107,6 +107,50 @@ def test_inputs_and_outputs_follow_the_effects():
     assert st.y["thermal"] == pytest.approx(y0 * math.exp(-3.0 / 3.0), rel=1e-12)
 
 
+def test_one_absurd_sample_leaves_no_trace_and_the_states_stay_bounded():
+    """kappa = -1e6 once (what drove the tread to 2e213 degC): marked as not driving, it steps
+    the nodes with the power held from before, so the states after it are those of a run
+    without it; driving, its power is bounded and the nodes stay within their bound."""
+    from tire_model_ros.model.states import MAX_POWER_W, MAX_RISE_K
+
+    model = TireModel.from_file(DEFAULT_TIR)
+    fx = WheelEffects(thermal=Node(4.0, 5e-3), thermal_slow=Node(60.0, 2e-5))
+    t = np.arange(200) * 0.01
+    slips = 0.1 * np.sin(t * 3.0)
+
+    def run(absurd: bool, drive: bool) -> tuple[list[tuple[float, ...]], EffectState]:
+        st, rows = EffectState(fx), []
+        for i, (ti, k) in enumerate(zip(t, slips, strict=True)):
+            if i == 100 and absurd:  # between samples 99 and 100
+                out = st.evaluate(model, ti - 0.005, 5000.0, -1e6, 0.05, 0.0, 15.0,
+                                  None, None, 2.6e5, 25.0, 6752.0, drive=drive)  # fmt: skip
+                assert all(math.isfinite(v) for v in out)
+            rows.append(st.evaluate(model, float(ti), 5000.0, float(k), 0.05, 0.0, 15.0,
+                                    None, None, 2.6e5, 25.0, 6752.0))  # fmt: skip
+        return rows, st
+
+    clean, st_clean = run(False, True)
+    skipped, st_skipped = run(True, False)
+    np.testing.assert_allclose(skipped, clean, rtol=1e-12, atol=1e-9)
+    assert st_skipped.y == pytest.approx(st_clean.y, rel=1e-12)
+    driven, st_driven = run(True, True)
+    assert np.all(np.isfinite(driven)) and all(abs(y) <= MAX_RISE_K for y in st_driven.y.values())
+    assert st_driven.temperature_C < 25.0 + 2 * MAX_RISE_K
+    lag = EffectState(WheelEffects(T_lag_s=2.0))  # a measured temperature through its lag
+    ref = EffectState(WheelEffects(T_lag_s=2.0))
+    for i in range(30):
+        if i == 15:  # 500 degC once, between two samples, not driving: no trace in the lag
+            lag.inputs(i - 0.5, 0.1, 0.0, 10.0, 500.0, None, 2.6e5, 25.0, drive=False)
+        T = lag.inputs(float(i), 0.1, 0.0, 10.0, 30.0 + i, None, 2.6e5, 25.0)[2]
+        T_ref = ref.inputs(float(i), 0.1, 0.0, 10.0, 30.0 + i, None, 2.6e5, 25.0)[2]
+        assert abs(T - T_ref) <= 1e-12 * abs(T_ref)
+    st = EffectState(fx)  # a power of 1e300 W: bounded drive, bounded states
+    for i in range(50):
+        st.inputs(float(i), 0.1, 0.0, 10.0, None, None, 2.6e5, 25.0)
+        st.outputs((1e300, 0.0, 5000.0, 0.0, 0.0, 0.0), 1.0, 5000.0, 0.1, 0.0, 10.0, 5000.0)
+        assert st.P_last <= MAX_POWER_W and abs(st.y["thermal"]) <= MAX_RISE_K
+
+
 def test_effects_file_round_trip(tmp_path):
     fx = Effects({"/rig/wheel": FULL}, "improved.tir", ("drift: friction step at a fitted time",))
     path = tmp_path / "improved.effects.json"

@@ -6,6 +6,7 @@ import math
 import os
 import re
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -202,14 +203,16 @@ def test_write_read_round_trip_is_exact(path, tmp_path):
 
 
 def test_round_trip_of_awkward_floats(tmp_path):
-    # the extreme magnitudes go to coefficients no force depends on: the model stays a tyre
+    # the extreme magnitudes go to coefficients no force depends on: the model stays a tyre;
+    # every coefficient has a range now, so the largest float goes to an unknown key
     tir = read_tir(MF61_TIR).with_params(
         {"PDY1": 0.1 + 0.2, "PKY1": -1e-300, "IXX": 1 / 3, "FNOMIN": 6752.000000000001,
-         "PEX1": -0.0, "DAMP_VLOW": 5e-324, "GRAVITY": -1.7976931348623157e308}
+         "PEX1": -0.0, "DAMP_VLOW": 5e-324, "GRAVITY": -99.99999999999999}
     )  # fmt: skip
+    tir = replace(tir, params={**tir.params, "HUGE_KEY": -1.7976931348623157e308})
     write_tir(tir, tmp_path / "f.tir")
     back = read_tir(tmp_path / "f.tir").params
-    for key in ("PDY1", "PKY1", "IXX", "FNOMIN", "PEX1", "DAMP_VLOW", "GRAVITY"):
+    for key in ("PDY1", "PKY1", "IXX", "FNOMIN", "PEX1", "DAMP_VLOW", "GRAVITY", "HUGE_KEY"):
         assert back[key] == tir.params[key] and math.copysign(1, back[key]) == math.copysign(
             1, tir.params[key]
         )
@@ -371,7 +374,7 @@ def _append(*extra):
 
 T = {p: _line_of(REF_LINES, p) for p in (
     "[LATERAL_COEFFICIENTS]", "[OPERATING_CONDITIONS]", "PRESMAX", "FZMAX", "KPUMAX", "QSX1",
-    "NOMPRES", "PCX1", "UNLOADED_RADIUS", "[TURNSLIP_COEFFICIENTS]")}  # fmt: skip
+    "NOMPRES", "PCX1", "UNLOADED_RADIUS", "[TURNSLIP_COEFFICIENTS]", "PKX3")}  # fmt: skip
 N_ROLLING = sum(ln.startswith(("[ROLLING", "QSY")) for ln in REF_LINES)
 
 # What cannot be trusted: refused by default, each naming the file, the line and the key.
@@ -402,7 +405,8 @@ TRUST_CASES = [
      "outside the file's range FZMIN..FZMAX"),
     ("fnomin_tiny", _replace("FNOMIN", "FNOMIN = 1e-12"), L["FNOMIN"], "FNOMIN",
      "not a tyre on the file's operating range"),
-    ("qsx1_huge", _replace("QSX1", "QSX1 = 1e308"), T["QSX1"], "QSX1", "Mx is inf"),
+    # in range alone (PKX3 <= 1e4), RBY4's value: exp(PKX3 dfz) overflows above 1.4 FNOMIN
+    ("pkx3_swapped", _replace("PKX3", "PKX3 = 1747.3832"), T["PKX3"], "PKX3", "Fx is nan"),
 ]  # fmt: skip
 
 
@@ -489,11 +493,13 @@ def test_check_model_names_the_coefficient():
 
     model = TireModel(read_tir(MF61_TIR))
     assert check_model(model) is None
-    fault = check_model(model.with_params({"QSX1": 1e308}))
-    assert fault is not None and fault.output == "Mx" and fault.causes == ("QSX1",)
-    assert "Mx is inf" in str(fault) and fault.n_points > 0
-    fault = check_model(model.with_params({"PDY1": 50.0}))  # mu_y of 50: finite, not a tyre
-    assert fault is not None and fault.output == "Fy" and "PDY1" in fault.causes
+    # PKX3 and RBY4 swapped, each within its range: exp(PKX3 dfz) overflows at high load
+    swapped = {"PKX3": model.params["RBY4"], "RBY4": model.params["PKX3"]}
+    fault = check_model(model.with_params(swapped))
+    assert fault is not None and fault.output == "Fx" and fault.causes == ("PKX3",)
+    assert "Fx is nan" in str(fault) and fault.n_points > 0
+    fault = check_model(model.with_params({"LMUY": 50.0}))  # mu_y x 50: finite, not a tyre
+    assert fault is not None and fault.output == "Fy" and "LMUY" in fault.causes
     assert "beyond the bound" in fault.reason
 
 
@@ -561,6 +567,43 @@ def test_parameter_table_is_consistent():
         assert P[name].check(0.0) is not None and P[name].check(1.0) is None, name
     assert is_required("fnomin") and is_required("NOMPRES", 61) and not is_required("NOMPRES", 6)
     assert not is_required("PDY1", 61)
+
+
+def test_every_coefficient_has_a_range_and_every_published_file_lies_within():
+    for name, spec in PARAMETERS.items():
+        assert spec.minimum is not None and spec.maximum is not None, name
+        assert spec.minimum < spec.maximum, name
+    assert "PDY1" in PARAMETERS["PDY1"].check(1e9)  # a typing error, not a friction coefficient
+    assert PARAMETERS["PDY1"].check(-0.73151) is None  # a published file's negative PDY1
+    for path in sorted(TIR_DIR.glob("*.tir")):
+        if path.name != "Model_Unstable.tir":  # refused for VERTICAL_STIFFNESS = 0 (its own)
+            read_tir(path, lenient=True)
+
+
+def test_temperature_range_section_saturates_T_and_round_trips(tmp_path):
+    from tire_model_ros.model import TireModel
+
+    text = DEFAULT_TIR.read_text() + "[TEMPERATURE_RANGE]\nTEMPMIN = 0\nTEMPMAX = 80\n"
+    path = tmp_path / "ranged.tir"
+    path.write_text(text)
+    tir = read_tir(path)
+    assert (tir.params["TEMPMIN"], tir.params["TEMPMAX"]) == (0.0, 80.0)
+    model = TireModel(tir)
+    hot = model.evaluate(5000.0, 0.1, 0.05, 0.0, 16.6, 2.6e5, [80.0, 500.0])
+    assert hot.Fx[0] == hot.Fx[1] and hot.Fy[0] == hot.Fy[1]  # saturated at TEMPMAX
+    plain = model.evaluate(5000.0, 0.1, 0.05, 0.0, 16.6, 2.6e5, 500.0, limits=False)
+    assert float(plain.Fx) < 0.0 < float(hot.Fx[0])  # 500 degC flips Fx without the limits
+    write_tir(tir, tmp_path / "back.tir")
+    assert "[TEMPERATURE_RANGE]" in (tmp_path / "back.tir").read_text()
+    assert read_tir(tmp_path / "back.tir").params["TEMPMAX"] == 80.0
+    # a file without the section: the sanity range, not written back
+    plain_tir = read_tir(DEFAULT_TIR)
+    assert (plain_tir.params["TEMPMIN"], plain_tir.params["TEMPMAX"]) == (-50.0, 150.0)
+    assert "TEMPERATURE_RANGE" not in tir_text(plain_tir)
+    for bad, word in (("TEMPMIN = 0\n", "TEMPMAX"), ("TEMPMIN = 90\nTEMPMAX = 80\n", "TEMPMIN")):
+        path.write_text(DEFAULT_TIR.read_text() + "[TEMPERATURE_RANGE]\n" + bad)
+        with pytest.raises(TirError, match=word):
+            read_tir(path)
 
 
 def test_tir_text_matches_written_file(tmp_path):

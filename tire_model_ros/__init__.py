@@ -10,6 +10,7 @@ Layout (data flows one way: recording -> aligned arrays -> model/fit/diagnosis -
 - ``wheel``      the node's per-wheel logic and parameter table, without ROS
 - ``cli``        the ``tire-model`` command and its subcommands
 - ``vocabulary`` the shared words of INTERFACE.md: topics, message types, channels, effects
+- ``delivery``   what play, the node and record did not deliver: their reports, the account
 - ``ros``        everything that needs ROS 2 (rclpy): the node, play, record; nothing outside
   this folder imports ROS, so the offline tool runs from a plain ``pip install``
 """
@@ -19,7 +20,9 @@ import os
 # One BLAS thread unless the user says otherwise: the package's linear algebra is small dense
 # problems (least-squares Jacobians of a few thousand rows), where a thread pool only costs. On
 # a busy 2-core machine a threaded SVD of 3000 x 16 took 0.4 s against 1.5 ms on one thread
-# (the diagnosis spent half its time there). Effective only before numpy is first imported.
+# (the diagnosis spent half its time there). Effective only before numpy is first imported;
+# the fit and the diagnosis also hold BLAS to one thread while they run (``blas``), for a user
+# who imported numpy first.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 

@@ -9,7 +9,9 @@
 4. Run the ROS 2 node (``tire-model-node``) with the improved .tir and its effects file, replay
    the session as recorded, still without temperature (``tire-model play``, decimated), and
    record the node's forces (``tire-model record``); compare them with the same improved model
-   run offline on the same messages, and with the measured forces.
+   run offline on the same messages, and with the measured forces. Every slip message played
+   is accounted for: recorded as a force, or counted by play, the node or the recorder; an
+   unexplained loss fails the step.
 5. Compare the diagnosis with the rig's truth.
 6. Beyond the rig (the seed paper's extension): the same tyre on a rig's safe envelope (heating,
    no temperature channel) and in a simulation at the special conditions (isothermal at set
@@ -36,6 +38,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from tire_model_ros.delivery import PLAY
 
 if TYPE_CHECKING:
     from tire_model_ros.diagnosis import Diagnosis
@@ -322,12 +326,14 @@ def step_node(wheels: Wheels, diag: Diagnosis, tir: Path, improved: Path, out: P
             procs.append(
                 subprocess.Popen(cmd, stdout=handles[-1], stderr=subprocess.STDOUT, env=env)
             )
-        time.sleep(3.0)  # discovery; play starts only when both are up
-        for p, name in zip(procs, ("node", "record"), strict=True):
-            if p.poll() is not None:
-                raise RuntimeError(f"{name} exited early ({p.returncode}); see {logs}/{name}.log")
+        # play starts once the recorder listens to every wheel's forces: none is published
+        # before it can be recorded (the node logs each match)
+        matched = [f"{prefix}/forces: 1 subscriber(s) matched" for prefix in prefixes]
+        _wait_logs(procs, logs, {"node": matched, "record": ["recording"]}, timeout_s=180.0)
         out_play = run(play_cmd, "4", span / REPLAY_RATE * 4 + 60, env)
-        say("4", out_play.strip().splitlines()[-1] if out_play.strip() else "played")
+        for line in out_play.strip().splitlines():
+            if not line.startswith(PLAY):
+                say("4", line)
         try:  # the recorder stops by itself after one force message per slip message
             procs[1].wait(timeout=10.0)
         except subprocess.TimeoutExpired:
@@ -337,10 +343,61 @@ def step_node(wheels: Wheels, diag: Diagnosis, tir: Path, improved: Path, out: P
             _stop(p)
         for h in handles:
             h.close()
-    say("4", "record: " + " ".join((logs / "record.log").read_text().split()[-4:]))
     if not forces_bag.exists():
         raise RuntimeError(f"the recorder wrote no bag at {forces_bag}; see {logs}/record.log")
-    return compare(forces_bag, parts, improved, tir, diag)
+    accounted = account_for_loss(prefixes, out_play, logs)
+    return compare(forces_bag, parts, improved, tir, diag) and accounted
+
+
+def _wait_logs(
+    procs: list[subprocess.Popen[bytes]],
+    logs: Path,
+    lines: dict[str, list[str]],
+    timeout_s: float,
+) -> None:
+    """Wait until each process's log holds its lines (discovery done); fail if one exits."""
+    end = time.monotonic() + timeout_s
+    while True:
+        missing = [
+            f"{name}: {text!r}"
+            for name, texts in lines.items()
+            for text in texts
+            if text not in (logs / f"{name}.log").read_text()
+        ]
+        if not missing:
+            return
+        for p, name in zip(procs, lines, strict=True):
+            if p.poll() is not None:
+                raise RuntimeError(f"{name} exited early ({p.returncode}); see {logs}/{name}.log")
+        if time.monotonic() > end:
+            raise RuntimeError(f"not ready after {timeout_s:.0f} s: {'; '.join(missing)}")
+        time.sleep(0.1)
+
+
+def account_for_loss(prefixes: list[str], out_play: str, logs: Path) -> bool:
+    """Every slip message played is a recorded force or counted by a stage (play's
+    acknowledgements, the node's final counts, the recorder's gaps); False on any other loss."""
+    from tire_model_ros.delivery import NODE, RECORD, account, parse_reports
+
+    plays = parse_reports(out_play, PLAY)
+    nodes = parse_reports((logs / "node.log").read_text(), NODE)
+    records = parse_reports((logs / "record.log").read_text(), RECORD)
+    ok = True
+    for prefix in prefixes:
+        try:
+            acc = account(prefix, plays, nodes, records)
+        except KeyError as exc:
+            say("4", f"FAILED: {prefix}: cannot account for its messages: {exc}")
+            ok = False
+            continue
+        say("4", f"{prefix}: {acc.text()}")
+        if acc.unexplained:
+            say(
+                "4",
+                f"FAILED: {prefix}: {acc.unexplained} messages lost with no stage counting them",
+            )
+            ok = False
+    return ok
 
 
 def offline(model: TireModel, effects: WheelEffects | None, w: WheelSeries) -> np.ndarray:

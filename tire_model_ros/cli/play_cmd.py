@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
 
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, on_signal)
-    sent = play(
+    report = play(
         args.bag,
         rate=0.0 if args.fast else args.rate,
         loop=args.loop,
@@ -68,5 +68,7 @@ def run(args: argparse.Namespace) -> int:
         should_stop=lambda: stop["flag"],
         salvage=args.salvage,
     )
-    print(f"published {sent} messages")
+    for line in report.lines():
+        print(line)
+    print(f"published {report.total} messages")
     return 0

@@ -29,6 +29,9 @@ MAX_SIGN_P = 0.05  # sign test over the changed held-out sweeps ...
 MIN_WEIGHTED_FRACTION = 0.8  # ... or >= 80 % of the total change is improvement
 MIN_T_ALT = 2.0  # ... with t >= 2
 MIN_CONTROL_MARGIN = 0.02  # >= 2 % lower held-out RMS than each control
+# ... a control whose predictions differ from the effect's by less than this share of what the
+# effect changes makes the same prediction: it cannot test it
+CONTROL_RESOLVES = 0.2
 STABLE_SHARE = 0.7  # two fits of an effect differ by less than 70 % of what it does
 
 

@@ -339,7 +339,12 @@ def shared_conditions(ctx: Context, halves: Sequence[Index]) -> Index:
 
 
 def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
-    """It predicts held-out sweeps better than each of its controls, fitted the same way."""
+    """It predicts held-out sweeps better than each of its controls, fitted the same way.
+
+    A control that predicts what the effect predicts (a carcass heated over minutes by a steady
+    programme's power rises the same played forwards or backwards) cannot test it: it is
+    passed over, and said so.
+    """
     new = _new(t, cur)
     if not new:
         return True, ""
@@ -349,16 +354,33 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
         ctrl = Joint(
             {p: add(tr, per_wheel[p][i]) if p in per_wheel else tr for p, tr in cur.wheels.items()}
         )
+        apart = _apart(t, ctrl, cur, [p for p in per_wheel])
         rms = ctrl.score.rms
-        out.append(f"{c.label} {rms:.3f}")
+        if apart < ev.CONTROL_RESOLVES:
+            out.append(f"{c.label} {rms:.3f} (the same forces, {apart:.2f} apart: no test)")
+            continue
+        out.append(f"{c.label} {rms:.3f} ({apart:.2f} apart)")
         if t.score.rms > rms * (1.0 - ev.MIN_CONTROL_MARGIN):
-            return False, f"not better than {c.label} ({t.score.rms:.3f} vs {rms:.3f})"
+            return False, (f"not better than {c.label} ({t.score.rms:.3f} vs {rms:.3f}, "
+                           f"{apart:.2f} apart)")  # fmt: skip
     if not out:
         return True, ""
     return (
         True,
         f"beats its controls: {', '.join(out)} vs {t.score.rms:.3f} (held-out RMS, noise units)",
     )
+
+
+def _apart(t: Joint, ctrl: Joint, cur: Joint, prefixes: Sequence[str]) -> float:
+    """How far apart the effect's and its control's held-out predictions are, as a share of
+    what the effect changes (both in noise units, every wheel and split pooled)."""
+    diff, done = [], []
+    for p in prefixes:
+        a, b, c = t.wheels[p], ctrl.wheels[p], cur.wheels[p]
+        for i, (_, test) in enumerate(splits(a.ctx)):
+            diff.append(_doing(a.fits[i], b.fits[i], a.ctx, test))
+            done.append(_doing(a.fits[i], c.fits[i], a.ctx, test))
+    return ev.rms(np.concatenate(diff)) / max(ev.rms(np.concatenate(done)), 1e-12)
 
 
 def _backward(

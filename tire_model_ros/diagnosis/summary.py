@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from tire_model_ros.blas import one_blas_thread
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects
 from tire_model_ros.recording.series import WheelSeries
@@ -149,6 +150,7 @@ class _Scored:
     predictions: dict[str, Array]
 
 
+@one_blas_thread
 def diagnose(wheels: Sequence[WheelSeries], model: TireModel, *, seed: int = 0) -> Diagnosis:
     """Compare ``model`` with the recorded wheels and name the physics it leaves out.
 

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 import numpy.typing as npt
 
+from tire_model_ros.blas import one_blas_thread
 from tire_model_ros.recording.series import WheelSeries
 
 from .core import evaluate_on, fit_coefficients, stack_inputs
@@ -453,6 +454,7 @@ def _has_channel(series: Sequence[WheelSeries], c: str) -> bool:
     return False
 
 
+@one_blas_thread
 def fit_recording(
     wheels: Sequence[WheelSeries] | Mapping[str, WheelSeries],
     model: TireModel,

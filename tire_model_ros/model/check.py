@@ -3,12 +3,14 @@
 ``read_tir`` refuses a file whose model fails :func:`check_model`, and the node refuses a
 coefficient change that does. The grid spans the ranges the file gives (loads FZMIN..FZMAX and
 0, slips KPUMIN..KPUMAX, ALPMIN..ALPMAX, inclinations CAMMIN..CAMMAX, pressures
-PRESMIN..PRESMAX), speeds -LONGVL, 0, VXLOW/2, LONGVL, 3 LONGVL and temperatures NOMTEMP - 50,
-NOMTEMP, NOMTEMP + 100 degC, with the limits on (saturation, low-speed model) and off (the plain
-equations); ``operating_grid`` says how. Every output of ``evaluate(full=False)`` (what ``eval``
+PRESMIN..PRESMAX), speeds -150, -LONGVL, 0, VXLOW/2, LONGVL, 3 LONGVL, 150 m/s (a .tir gives no
+speed range: +-``SPEED_SANITY_M_S`` is the node's) and temperatures TEMPMIN,
+NOMTEMP, TEMPMAX (the file's ``[TEMPERATURE_RANGE]``, else the table's sanity range -50..150
+degC), with the limits on (saturation, low-speed model) and off (the plain equations);
+``operating_grid`` says how. Every output of ``evaluate(full=False)`` (what ``eval``
 and the node give: forces, moments, slip stiffnesses, friction coefficients, trail) must be
 finite there, and the forces and moments those of a tyre on the ranges the file declares (at
-NOMTEMP, and at TEMPMIN and TEMPMAX when the file has a ``[TEMPERATURE_RANGE]``):
+NOMTEMP: the temperature terms are judged by finiteness only, see ``operating_grid``):
 
     |Fx|, |Fy| <= 10 Fz*          (a friction coefficient of 10 is no tyre)
     |Mx|, |My|, |Mz| <= 10 Fz* R0
@@ -41,6 +43,7 @@ if TYPE_CHECKING:
 __all__ = [
     "MAX_FORCE_PER_LOAD",
     "MAX_MOMENT_PER_LOAD_RADIUS",
+    "SPEED_SANITY_M_S",
     "ModelFault",
     "check_model",
     "operating_grid",
@@ -50,12 +53,13 @@ __all__ = [
 Array = npt.NDArray[np.float64]
 
 MAX_FORCE_PER_LOAD = 10.0  # |Fx|, |Fy| / Fz* [-]
+#: |Vx| [m/s] beyond which a speed is no road tyre's (540 km/h, above every speed rating; the
+#: node saturates there, a .tir gives no speed range).
+SPEED_SANITY_M_S = 150.0
 MAX_MOMENT_PER_LOAD_RADIUS = 10.0  # |Mx|, |My|, |Mz| / (Fz* R0) [-]
 _FORCES = ("Fx", "Fy")
 _MOMENTS = ("Mx", "My", "Mz")
 _INPUTS = ("Fz", "kappa", "alpha", "gamma", "Vx", "p", "T")
-# The default [TEMPERATURE_RANGE] (params): a sanity range, not one the file declares.
-_SANITY = {k: PARAMETERS[k].default for k in ("TEMPMIN", "TEMPMAX")}
 _MAX_PROBES = 32  # failing points re-evaluated per coefficient when looking for the cause
 
 
@@ -101,10 +105,10 @@ def operating_grid(params: Mapping[str, float]) -> dict[str, Array]:
 
     Three products: loads x slips x inclinations x speeds at the nominal pressure and
     temperature; loads x slips x pressures, and loads x slips x temperatures, upright at LONGVL.
-    ``bounded`` is 1 where the tyre bounds apply: on the ranges the file declares. Away from
-    NOMTEMP only finiteness is asked (the temperature terms are polynomials fitted over a
-    session's span, not beyond it), except at the ends of a ``[TEMPERATURE_RANGE]`` the file
-    declares.
+    ``bounded`` is 1 where the tyre bounds apply: on the ranges the file declares. At
+    temperatures other than NOMTEMP only finiteness is asked: most files give no temperature
+    range (the sanity range stands in) and the temperature terms are polynomials fitted over a
+    session's span, not beyond it.
     """
     P = params
     fz0 = P["FNOMIN"]
@@ -114,22 +118,18 @@ def operating_grid(params: Mapping[str, float]) -> dict[str, Array]:
     alpha = _span(P["ALPMIN"], P["ALPMAX"], 7)
     gamma = _span(P["CAMMIN"], P["CAMMAX"], 2)
     v0 = P["LONGVL"]
-    speeds = np.array([-v0, 0.0, 0.5 * P["VXLOW"], v0, 3.0 * v0])
+    vmax = SPEED_SANITY_M_S
+    speeds = np.unique([-vmax, -v0, 0.0, 0.5 * P["VXLOW"], v0, 3.0 * v0, vmax])
     p0 = P["INFLPRES"] if P.get("INFLPRES", 0.0) > 0.0 else P["NOMPRES"]
     pressures = np.unique([P["PRESMIN"], P["NOMPRES"], P["PRESMAX"]])
     t0 = P["NOMTEMP"]
-    temperatures = np.array([t0 - 50.0, t0 + 100.0])
+    temperatures = np.array([P["TEMPMIN"], P["TEMPMAX"]])
     ks, als = kappa[::2], alpha[::2]
     blocks = [
         (np.meshgrid(loads, kappa, alpha, gamma, speeds, [p0], [t0], indexing="ij"), 1.0),
         (np.meshgrid(loads, ks, als, [0.0], [v0], pressures, [t0], indexing="ij"), 1.0),
         (np.meshgrid(loads, ks, als, [0.0], [v0], [p0], temperatures, indexing="ij"), 0.0),
     ]
-    declared = [P[k] for k in ("TEMPMIN", "TEMPMAX") if P.get(k, _SANITY[k]) != _SANITY[k]]
-    if declared:
-        blocks.append(
-            (np.meshgrid(loads, ks, als, [0.0], [v0], [p0], declared, indexing="ij"), 1.0)
-        )
     grid = {
         name: np.concatenate([block[k].ravel() for block, _ in blocks])
         for k, name in enumerate(_INPUTS)
@@ -216,7 +216,7 @@ def saturated_rows(params: Mapping[str, float], inputs: Mapping[str, Array]) -> 
     negative load (read as 0), or a speed at or below VXLOW (the low-speed model).
 
     ``inputs`` holds ``Fz, kappa, alpha, gamma, Vx, p`` arrays [N, -, rad, rad, m/s, Pa] and
-    optionally ``T`` [degC] (TEMPMIN..TEMPMAX).
+    may hold ``T`` [degC] (saturated to TEMPMIN..TEMPMAX).
     """
     P = params
     ranges = {
@@ -224,11 +224,11 @@ def saturated_rows(params: Mapping[str, float], inputs: Mapping[str, Array]) -> 
         "alpha": (P["ALPMIN"], P["ALPMAX"]),
         "gamma": (P["CAMMIN"], P["CAMMAX"]),
         "p": (P["PRESMIN"], P["PRESMAX"]),
-        "T": (P.get("TEMPMIN", -np.inf), P.get("TEMPMAX", np.inf)),
     }
+    if "T" in inputs:
+        ranges["T"] = (P["TEMPMIN"], P["TEMPMAX"])
     counts = {"Fz": int(np.count_nonzero((inputs["Fz"] < 0.0) | (inputs["Fz"] > P["FZMAX"])))}
     for name, (lo, hi) in ranges.items():
-        if name in inputs:
-            counts[name] = int(np.count_nonzero((inputs[name] < lo) | (inputs[name] > hi)))
+        counts[name] = int(np.count_nonzero((inputs[name] < lo) | (inputs[name] > hi)))
     counts["Vx (low-speed model)"] = int(np.count_nonzero(np.abs(inputs["Vx"]) <= P["VXLOW"]))
     return counts

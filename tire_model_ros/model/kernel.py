@@ -24,6 +24,7 @@ import numpy.typing as npt
 from . import coef as c
 from . import vmath as vm
 from .conditions import (
+    clip,
     cos_alpha_prime,
     load_increment,
     operating_point,
@@ -130,8 +131,7 @@ def _conditions_sample(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, i, o,
     o[6, j] = red
     o[7, j] = load_increment(P, Fz_)
     o[8, j] = pressure_increment(P, p_)
-    # INTERFACE.md's [TEMPERATURE_RANGE]: T saturated to TEMPMIN..TEMPMAX like p and Fz
-    T_ = min(max(T[i], P[c.TEMPMIN]), P[c.TEMPMAX]) if limits else T[i]
+    T_ = clip(T[i], P[c.TEMPMIN], P[c.TEMPMAX]) if limits else T[i]
     o[9, j] = temperature_increment(P, T_)
     o[10, j] = cos_alpha_prime(alpha_, Vx[i])
     o[11, j] = uFz

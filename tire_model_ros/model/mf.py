@@ -193,7 +193,9 @@ class TireModel:
         omega : wheel spin [rad/s] (None: from kappa and Vx); changes Re/Rl/omega, and the
             camber spin of the turn-slip model.
         limits : True = MFeval useMode 1xx (saturation to the file ranges, low-speed model,
-            E <= 1); False = plain equations (useMode 2xx).
+            E <= 1), and T saturated to TEMPMIN..TEMPMAX (``[TEMPERATURE_RANGE]``, else the
+            table's physical sanity range; MFeval has no temperature); False = plain equations
+            (useMode 2xx).
         full : False skips the radii, stiffnesses and relaxation lengths (faster).
         turn_slip : the turn-slip model of Pacejka 2012 §4.3.3 (spin phi from phit and the
             camber, the zeta factors), useMode xx2; False (default) = xx1, every zeta = 1.

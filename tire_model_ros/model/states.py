@@ -12,6 +12,18 @@ The forms are the diagnosis' (:mod:`tire_model_ros.diagnosis.effects`): each nod
 scales by the similarity method (Pacejka 2012 §4.3.2). One difference, by necessity: the
 diagnosis drives the nodes with the frictional power of the *measured* forces, a forward model
 with its own previous output forces.
+
+Bounded, so that one absurd sample cannot corrupt the states of a running node (a slip ratio
+of -1e6 once drove the tread to 2e213 degC, then inf, and the wheel went silent for minutes):
+
+- the drive, the frictional power, is finite and at most :data:`MAX_POWER_W` (1 MW: a tyre at
+  10 kN sliding at 100 m/s);
+- each node's state lies within +-:data:`MAX_RISE_K` (300 K above or below ambient: the tread
+  would burn first);
+- a sample the caller marks as not driving (``drive=False``: the node does so for a sample whose
+  inputs it had to saturate) steps the nodes with the power held from before and leaves the
+  power as it was: since the step is exact for a held power, the states go on exactly as if
+  that sample had not come.
 """
 
 from __future__ import annotations
@@ -37,6 +49,8 @@ READS = (1, 2)  # version 1 (no slow node, shift or sidewall) reads as a subset 
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 NODES = ("thermal", "thermal_slow", "gas")
+MAX_POWER_W = 1e6  # the drive's bound [W]
+MAX_RISE_K = 300.0  # each node state's bound [K]
 
 
 @dataclass(frozen=True)
@@ -281,20 +295,22 @@ class EffectState:
                 continue
             u = node.gain_per_W * self.P_last
             if node.tau_s <= 0.0:
-                self.y[name] = u
+                self.y[name] = _bounded(u)
                 continue
             a = math.exp(-dt / node.tau_s)
-            self.y[name] = a * self.y[name] + (1.0 - a) * u
+            self.y[name] = _bounded(a * self.y[name] + (1.0 - a) * u)
 
-    def _lagged(self, T_C: float, dt: float) -> float:
+    def _lagged(self, T_C: float, dt: float, drive: bool = True) -> float:
         """The measured temperature through the first-order lag T_lag_s (the value held over
-        the step, as the diagnosis integrates it)."""
+        the step, as the diagnosis integrates it); ``drive`` False: ``T_C`` is not held over
+        the next step (the one held from before is)."""
         if self.T_seen is None or self.T_last is None:
             self.T_seen = T_C
         else:
             a = math.exp(-dt / self.fx.T_lag_s)
             self.T_seen = a * self.T_seen + (1.0 - a) * self.T_last
-        self.T_last = T_C
+        if drive or self.T_last is None:
+            self.T_last = T_C
         return self.T_seen
 
     def idle(self, t_s: float) -> None:
@@ -318,19 +334,21 @@ class EffectState:
         p_nom: float,
         T_nom: float,
         Fz_over_FNOMIN: float = 1.0,
+        drive: bool = True,
     ) -> tuple[float, float, float, float, float]:
         """(kappa, alpha, T, p, s) for the model at ``t_s`` [s]; s is the friction scale.
 
         A temperature ``T_C`` [degC] or gauge pressure ``p_Pa`` that is None (not measured)
         takes the hidden thermal nodes, or the gas law on ``p_nom`` with the hidden gas node;
-        the nominal value when the effects have no such node.
+        the nominal value when the effects have no such node. ``drive`` as in :meth:`outputs`
+        (a measured temperature of a sample that does not drive is not held by the lag).
         """
         dt = 0.0 if self.t_last is None else max(t_s - self.t_last, 0.0)
         self._step(t_s)
         fx = self.fx
         T = T_C
         if T is not None and fx.T_lag_s > 0.0:
-            T = self._lagged(T, dt)
+            T = self._lagged(T, dt, drive)
         if T is None:
             T = self.temperature_C if fx.thermal is not None else T_nom
         p = p_Pa
@@ -368,13 +386,15 @@ class EffectState:
         T_nom: float,
         FNOMIN: float,
         limits: bool = True,
+        drive: bool = True,
     ) -> Wrench:
         """One sample of the improved model: :meth:`inputs`, ``model.evaluate_one`` at them,
-        :meth:`outputs` (Fx, Fy, Fz, Mx, My, Mz). What the node computes per slip message."""
+        :meth:`outputs` (Fx, Fy, Fz, Mx, My, Mz). What the node computes per slip message;
+        ``drive`` as in :meth:`outputs`."""
         load = Fz / FNOMIN if FNOMIN > 0 else 0.0
-        k, a, T, p, s = self.inputs(t_s, kappa, alpha, Vx, T_C, p_Pa, p_nom, T_nom, load)
+        k, a, T, p, s = self.inputs(t_s, kappa, alpha, Vx, T_C, p_Pa, p_nom, T_nom, load, drive)
         out = model.evaluate_one(Fz, k, a, gamma, Vx, p, T, limits=limits)
-        return self.outputs(out, s, Fz, kappa, alpha, Vx, FNOMIN)
+        return self.outputs(out, s, Fz, kappa, alpha, Vx, FNOMIN, drive)
 
     def _offset(self, ch: str, load: float) -> float:
         a, b = self.fx.offsets.get(ch, (0.0, 0.0))
@@ -389,11 +409,13 @@ class EffectState:
         alpha: float,
         Vx: float,
         FNOMIN: float,
+        drive: bool = True,
     ) -> Wrench:
         """(Fx, Fy, Fz, Mx, My, Mz) scaled by s (Fx, Fy, Mz), Fy by the sidewall factor, with
         the offsets (their load part in proportion to Fz / FNOMIN); its frictional power
-        |Fx V kappa| + |Fy V tan(alpha)| (the slips before the similarity method) drives the
-        next step."""
+        |Fx V kappa| + |Fy V tan(alpha)| (the slips before the similarity method), at most
+        :data:`MAX_POWER_W`, drives the next step unless ``drive`` is False (the power held
+        from before drives it: a sample that is not to be trusted leaves no trace)."""
         Fx, Fy, Fz_o, Mx, My, Mz = out
         Fx, Fy, Mz = Fx * s, Fy * s, Mz * s
         if self.fx.sidewall is not None:
@@ -403,6 +425,12 @@ class EffectState:
         load = Fz / FNOMIN if FNOMIN > 0 else 0.0
         Fx, Fy, Mz = (v + self._offset(ch, load) for ch, v in (("Fx", Fx), ("Fy", Fy), ("Mz", Mz)))
         P = abs(Fx * Vx * kappa) + abs(Fy * Vx * math.tan(alpha))
-        if math.isfinite(P):  # a bad sample must not poison the states
-            self.P_last = P
+        if drive and math.isfinite(P):  # a bad sample must not poison the states
+            self.P_last = min(P, MAX_POWER_W)
         return Fx, Fy, Fz_o, Mx, My, Mz
+
+
+def _bounded(y_K: float) -> float:
+    """A node state within +-MAX_RISE_K (NaN, from a NaN drive, would stay NaN: the drive is
+    finite by construction)."""
+    return min(max(y_K, -MAX_RISE_K), MAX_RISE_K)

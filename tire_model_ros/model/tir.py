@@ -792,25 +792,16 @@ _TEMPERATURE_NOTE = (
 )
 
 
-# Sections a file has only when it sets them: a file without [TEMPERATURE_RANGE] stays
-# without one (INTERFACE.md: absent means no saturation of T beyond the sanity range).
-_WRITTEN_WHEN_SET = frozenset({"TEMPERATURE_RANGE"})
-
-
 def _worth_writing(tir: TirData, name: str, value: float) -> bool:
-    """Write a coefficient unless it is a default that only another model version uses.
+    """Write a coefficient unless it is a default that only another model version uses, or
+    the default temperature range (a file without ``[TEMPERATURE_RANGE]`` stays without it).
 
     Leaving those out keeps e.g. MF 6.2 vertical terms out of an MF 6.1 file; reading the file
-    back gives the same default, so the round trip stays exact. A ``_WRITTEN_WHEN_SET``
-    section is written only when the file gave it or a value differs from its default.
+    back gives the same default, so the round trip stays exact.
     """
     spec = PARAMETERS[name]
-    if spec.section in _WRITTEN_WHEN_SET:  # whole or not at all (versions: all or nothing)
-        return any(
-            k in tir.given or tir.params.get(k, s.default) != s.default
-            for k, s in PARAMETERS.items()
-            if s.section == spec.section
-        )
+    if spec.section == "TEMPERATURE_RANGE":  # its default is a sanity range, not the file's
+        return name in tir.given or value != spec.default
     if name in tir.given or value != spec.default or not spec.family:
         return True
     own = {6: "5.2", 61: "6.1", 62: "6.2"}.get(tir.fittyp, "")

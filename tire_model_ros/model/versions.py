@@ -133,7 +133,7 @@ _OPTIONAL: dict[str, tuple[str, ...]] = {
     ),
     # dT is relative to NOMTEMP: terms without their reference temperature mean nothing.
     "TEMPERATURE_COEFFICIENTS": _keys("NOMTEMP TTX1 TTX2 TTX3 TTX4 TTY1 TTY2 TTY3 TTY4"),
-    # a range is its two ends (INTERFACE.md: [TEMPERATURE_RANGE] TEMPMIN, TEMPMAX)
+    # the saturation range of T (INTERFACE.md): a range needs both ends.
     "TEMPERATURE_RANGE": _keys("TEMPMIN TEMPMAX"),
 }
 

@@ -2,9 +2,10 @@
 
 "Samples are aligned on the slip messages by header.stamp: every other channel is taken as its
 latest value at or before that stamp; measured_forces: same stamp, else the nearest." The
-offline reader applies it to whole recordings (:func:`align_wheel`); the functions on stamp
-arrays (:func:`latest_at_or_before`, :func:`nearest`, :func:`hold_latest`) serve a stream as
-well. Decisions this module takes on top of the rule:
+offline reader applies it to whole recordings (:func:`align_wheel`); the node applies the same
+function, :func:`latest_at_or_before`, to a short history of each input for every slip message
+(:mod:`tire_model_ros.wheel.history`), so the node and the offline tool pair the same messages.
+Decisions this module takes on top of the rule:
 
 - Samples are the slip messages sorted by header stamp (equal stamps keep the given order).
 - ``load`` missing before the first slip: those leading samples are dropped
@@ -23,7 +24,7 @@ well. Decisions this module takes on top of the rule:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -37,8 +38,17 @@ Indices = npt.NDArray[np.intp]
 Stamped = tuple[Stamps, npt.NDArray[np.float64]]
 
 
-def latest_at_or_before(stamps: Stamps, t: Stamps) -> Indices:
-    """Index of the last of ``stamps`` (sorted) that is <= each ``t``; -1 where none."""
+@overload
+def latest_at_or_before(stamps: Stamps, t: Stamps) -> Indices: ...
+@overload
+def latest_at_or_before(stamps: Stamps, t: np.int64) -> np.intp: ...
+def latest_at_or_before(stamps: Stamps, t: Stamps | np.int64) -> Indices | np.intp:
+    """Index of the last of ``stamps`` (sorted) that is <= each ``t``; -1 where none.
+
+    THE alignment rule of INTERFACE.md ("the latest value whose header.stamp is at or before
+    the slip's stamp"), for the offline reader (arrays of slip stamps) and the node (one slip
+    stamp against an input's history). Of equal stamps, the last one.
+    """
     return np.searchsorted(stamps, t, side="right") - 1
 
 

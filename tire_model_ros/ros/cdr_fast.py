@@ -60,10 +60,10 @@ def read_vector(data: bytes) -> tuple[int, float, float, float] | None:
     return end, x, y, z
 
 
-def read_stamp(data: bytes) -> float:
-    """header.stamp [s] of a message whose header ``read_vector`` accepted."""
+def read_stamp_ns(data: bytes) -> int:
+    """header.stamp [ns] of a message whose header ``read_vector``/``read_double`` accepted."""
     sec, nanosec = struct.unpack_from("<iI", data, 4)
-    return float(sec + 1e-9 * nanosec)
+    return int(sec) * 1_000_000_000 + int(nanosec)
 
 
 def wrench_like(data: bytes, end: int, values: tuple[float, ...]) -> bytes:

@@ -2,7 +2,10 @@
 
 The CDR bytes from the bag are published as they are (``publish`` of raw bytes), so header
 stamps and values reach subscribers bit for bit. The schedule is pure (``schedule``) and
-tested without ROS; ``play`` only sleeps and publishes.
+tested without ROS; ``play`` only sleeps and publishes. No silent loss: play never lets its
+reliable queue drop a message a subscriber has not acknowledged (it waits, falling behind its
+schedule, and says so), and reports per topic what it published and whether every subscriber
+acknowledged it (``play report`` lines, :mod:`tire_model_ros.delivery`).
 """
 
 from __future__ import annotations
@@ -11,9 +14,11 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from tire_model_ros.delivery import PLAY, report_line
 from tire_model_ros.recording import RawBag, RecordingError, cdr, read_raw
 from tire_model_ros.ros.msg_types import msg_class
 from tire_model_ros.ros.teardown import deadline as teardown_deadline
@@ -111,6 +116,44 @@ def load_schedule(
     return schedule(read_raw(path, lambda t: t in chosen, salvage=salvage))
 
 
+#: How long play waits for every subscriber to acknowledge a window of messages [s].
+ACK_WAIT_S = 10.0
+
+
+@dataclass
+class PlayReport:
+    """What play delivered, per topic (:mod:`tire_model_ros.delivery`): messages published,
+    whether every reliable subscriber acknowledged them all, subscribers when it started."""
+
+    published: dict[str, int]
+    acknowledged: dict[str, bool]
+    subscribers: dict[str, int]
+    backpressure_waits: int = 0  # windows play waited for before going on
+    max_lag_s: float = 0.0  # how far behind its schedule it fell by waiting
+
+    @property
+    def total(self) -> int:
+        return sum(self.published.values())
+
+    def lines(self) -> list[str]:
+        """One ``play report`` line per topic, then what was not delivered, in words."""
+        out = []
+        for t, n in self.published.items():
+            counts = {"published": n, "acknowledged": int(self.acknowledged[t])}
+            out.append(report_line(PLAY, t, counts | {"subscribers": self.subscribers[t]}))
+        nobody = [t for t, n in self.subscribers.items() if n == 0 and self.published[t]]
+        unacked = [t for t, ok in self.acknowledged.items() if not ok and t not in nobody]
+        if nobody:
+            out.append(f"play: no subscriber on {', '.join(nobody)}: those messages went to nobody")
+        if unacked:
+            out.append(f"play: not acknowledged by every subscriber: {', '.join(unacked)} "
+                       "(messages may be lost there)")  # fmt: skip
+        if self.backpressure_waits:
+            out.append(f"play: waited {self.backpressure_waits} times for subscribers to keep "
+                       f"up, at most {self.max_lag_s:.2f} s behind the schedule")  # fmt: skip
+        return out
+
+
 def play(
     path: str | os.PathLike[str],
     *,
@@ -123,16 +166,17 @@ def play(
     wait_subscribers_s: float = 2.0,
     should_stop: Callable[[], bool] = lambda: False,
     log: Callable[[str], None] = print,
-) -> int:
-    """Publish the recording; return how many messages were published.
+) -> PlayReport:
+    """Publish the recording; what was published and delivered (:class:`PlayReport`).
 
     ``rate`` scales the original timing (2 = twice as fast); 0 publishes as fast as possible
     (reliable QoS, history depth ``queue`` on the publisher). Waits up to
-    ``wait_subscribers_s`` for a subscriber on every topic before starting, and for all
-    messages to be acknowledged at the end.
+    ``wait_subscribers_s`` for a subscriber on every topic before starting. Never overwrites a
+    message a subscriber has not acknowledged: after every ``queue // 2`` messages of a topic
+    it waits (up to :data:`ACK_WAIT_S`) until they are acknowledged, falling behind the
+    schedule when a subscriber cannot keep up, and at the end for all of them.
     """
     import rclpy
-    from rclpy.duration import Duration
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     if not rate >= 0 or not np.isfinite(rate):
@@ -148,44 +192,79 @@ def play(
     if own_context:
         rclpy.init()
     node = rclpy.create_node("tire_model_player")
-    sent = 0
+    report = PlayReport(dict.fromkeys(sched.topics, 0), dict.fromkeys(sched.topics, True), {})
     try:
         pubs = [
             node.create_publisher(msg_class(mt), t, qos)
             for t, mt in zip(sched.topics, sched.msgtypes, strict=True)
         ]
-        wait_until = time.monotonic() + wait_subscribers_s
-        while (
-            any(p.get_subscription_count() == 0 for p in pubs)
-            and time.monotonic() < wait_until
-            and not should_stop()
-        ):
-            time.sleep(0.01)
+        _wait_for_subscribers(pubs, wait_subscribers_s, should_stop)
+        report.subscribers = {p.topic_name: p.get_subscription_count() for p in pubs}
         log(
             f"playing {len(sched)} messages on {len(pubs)} topics from {path} "
             f"(rate {'max' if rate == 0 else rate})"
         )
-        raw = [sched.raw_of(i) for i in range(len(sched))]
-        rel_s = (sched.stamp_ns - sched.stamp_ns[0]) / NS_PER_S
-        t_idx = sched.topic_idx.tolist()
-        while True:
-            start = time.monotonic()
-            for i in range(len(raw)):
-                if should_stop():
-                    return sent
-                if rate > 0:
-                    delay = start + rel_s[i] / rate - time.monotonic()
-                    if delay > 0:
-                        time.sleep(delay)
-                pubs[t_idx[i]].publish(raw[i])
-                sent += 1
-            if not loop:
-                break
-        for p in pubs:
-            p.wait_for_all_acked(Duration(seconds=5.0))
-        return sent
+        _publish(sched, pubs, rate, loop, max(1, queue // 2), should_stop, report)
+        for pub in pubs:
+            if not _acked(pub, ACK_WAIT_S / 2):
+                report.acknowledged[pub.topic_name] = False
+        return report
     finally:
         with teardown_deadline():  # every message acknowledged (or the wait timed out) by now
             node.destroy_node()
             if own_context:
                 rclpy.try_shutdown()
+
+
+def _wait_for_subscribers(pubs: list[Any], seconds: float, should_stop: Callable[[], bool]) -> None:
+    wait_until = time.monotonic() + seconds
+    while (
+        any(p.get_subscription_count() == 0 for p in pubs)
+        and time.monotonic() < wait_until
+        and not should_stop()
+    ):
+        time.sleep(0.01)
+
+
+def _acked(pub: Any, seconds: float) -> bool:
+    from rclpy.duration import Duration
+
+    return bool(pub.wait_for_all_acked(Duration(seconds=seconds)))
+
+
+def _publish(
+    sched: Schedule,
+    pubs: list[Any],
+    rate: float,
+    loop: bool,
+    window: int,
+    should_stop: Callable[[], bool],
+    report: PlayReport,
+) -> None:
+    """The schedule's messages at their time; every ``window`` messages of a topic, wait until
+    they are acknowledged (KEEP_LAST would drop an unacknowledged one to make room)."""
+    raw = [sched.raw_of(i) for i in range(len(sched))]
+    rel_s = (sched.stamp_ns - sched.stamp_ns[0]) / NS_PER_S
+    t_idx = sched.topic_idx.tolist()
+    since_ack = [0] * len(pubs)
+    while True:
+        start = time.monotonic()
+        for i in range(len(raw)):
+            if should_stop():
+                return
+            due = start + rel_s[i] / rate if rate > 0 else time.monotonic()
+            delay = due - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            k = t_idx[i]
+            pubs[k].publish(raw[i])
+            report.published[pubs[k].topic_name] += 1
+            since_ack[k] += 1
+            if since_ack[k] >= window:
+                since_ack[k] = 0
+                report.backpressure_waits += 1
+                if not _acked(pubs[k], ACK_WAIT_S):
+                    report.acknowledged[pubs[k].topic_name] = False
+                report.max_lag_s = max(report.max_lag_s, time.monotonic() - due)
+        if not loop:
+            return

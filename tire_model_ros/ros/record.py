@@ -4,6 +4,12 @@ Messages are taken as serialized CDR bytes (no deserialisation), logged with the
 header.stamp as log time, and streamed into a ``BagWriter`` in a temp folder beside the
 target; the bag is renamed into place when recording stops (SIGINT/SIGTERM, ``duration``,
 ``count``), so an interrupted recorder never leaves a half-written bag under the target name.
+
+No silent loss: the subscriptions keep every message until taken (reliable, keep-all), and
+the recorder counts per topic what it did not get: gaps in the publisher's sequence numbers
+(a message the publisher dropped, or sent before the recorder was matched), and messages
+ignored after ``count``; one ``record report`` line per topic says so
+(:mod:`tire_model_ros.delivery`).
 """
 
 from __future__ import annotations
@@ -13,9 +19,11 @@ import signal
 import time
 from collections.abc import Callable, Mapping, Sequence
 from types import FrameType
+from typing import Any
 
 import numpy as np
 
+from tire_model_ros.delivery import RECORD, report_line
 from tire_model_ros.recording import BagWriter, cdr
 from tire_model_ros.ros.msg_types import msg_class
 from tire_model_ros.ros.teardown import deadline
@@ -55,6 +63,32 @@ def _stamp_ns(data: bytes, fallback_ns: int) -> int:
     return fallback_ns
 
 
+class TopicCount:
+    """What the recorder got of one topic: recorded, missing (sequence gaps), ignored."""
+
+    def __init__(self) -> None:
+        self.recorded = 0
+        self.gaps = 0
+        self.ignored = 0
+        self.publishers_seen = 0
+        self._last_seq = 0
+
+    def seen(self, seq: int | None) -> None:
+        """One message with the publisher's sequence number (None: the rmw gives none)."""
+        if seq is None:
+            return
+        if seq <= self._last_seq or self.publishers_seen == 0:
+            self.publishers_seen += 1  # another (or a restarted) publisher: its count restarts
+            self.gaps += seq - 1  # sent before this recorder was matched
+        else:
+            self.gaps += seq - self._last_seq - 1
+        self._last_seq = seq
+
+    def counts(self) -> dict[str, int]:
+        return {"recorded": self.recorded, "gaps": self.gaps, "ignored": self.ignored,
+                "publishers_seen": self.publishers_seen}  # fmt: skip
+
+
 def record(
     out: str | os.PathLike[str],
     topics: Mapping[str, str],
@@ -69,7 +103,8 @@ def record(
     """Record until SIGINT/SIGTERM, ``duration_s`` seconds, or ``count`` messages in total.
 
     Returns messages recorded per topic. The bag is closed and renamed into place in every
-    one of these cases, and on an unexpected error too (what was recorded is kept).
+    one of these cases, and on an unexpected error too (what was recorded is kept). ``log``
+    gets one ``record report`` line per topic at the end (what was recorded, missing, ignored).
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -100,21 +135,27 @@ def record(
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     total = {"n": 0}
+    seen = {topic: TopicCount() for topic in topics}
     try:
         for topic, msgtype in topics.items():
             writer.add_topic(topic, msgtype)
         qos = QoSProfile(
-            history=HistoryPolicy.KEEP_LAST, depth=queue, reliability=ReliabilityPolicy.RELIABLE
+            history=HistoryPolicy.KEEP_ALL, depth=queue, reliability=ReliabilityPolicy.RELIABLE
         )
         for topic in topics:
 
-            def callback(data: bytes, topic: str = topic) -> None:
+            def callback(data: bytes, info: Mapping[str, Any], topic: str = topic) -> None:
+                c = seen[topic]
+                c.seen(info.get("publication_sequence_number"))
                 if count is not None and total["n"] >= count:
+                    c.ignored += 1
                     return
                 writer.write(topic, _stamp_ns(data, time.time_ns()), data)
+                c.recorded += 1
                 total["n"] += 1
 
-            node.create_subscription(classes[topic], topic, callback, qos, raw=True)
+            # rclpy hands a callback of two arguments the message info too (its stubs say one)
+            node.create_subscription(classes[topic], topic, callback, qos, raw=True)  # type: ignore[arg-type]
         log(f"recording {len(topics)} topic(s) to {out}")
         end = None if duration_s is None else time.monotonic() + duration_s
         while not stop["flag"] and (count is None or total["n"] < count):
@@ -125,6 +166,11 @@ def record(
             # with SIGKILL loses only that; `tire-model info --salvage OUT -o BAG` reads the rest
             writer.flush_due()
         writer.close()
+        for topic, c in seen.items():
+            log(report_line(RECORD, topic, c.counts()))
+        missing = {t: c.gaps for t, c in seen.items() if c.gaps}
+        if missing:
+            log(f"record: messages that never reached the recorder: {missing}")
         log(f"recorded {total['n']} messages to {out}")
         return dict(writer.counts)
     except BaseException:

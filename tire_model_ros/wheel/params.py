@@ -37,8 +37,13 @@ GLOBAL_PARAMS = (
     "timeout",
     "diagnostics_period",
     "qos_depth",
+    "input_reliability",
+    "input_history",
+    "output_reliability",
+    "lenient",
     "rt_priority",
     "cpus",
+    "use_sim_time",
 )
 #: Default staleness timeouts [s]; 0 disables the check (value held for ever).
 DEFAULT_TIMEOUTS = {"load": 1.0, "pressure": 10.0, "temperature": 10.0, "velocity": 1.0}

@@ -1,28 +1,40 @@
-"""Per-wheel state of the node: latest inputs, staleness, counters (no ROS import).
+"""Per-wheel state of the node: stamped input histories, saturation, counters (no ROS import).
 
 Decisions (one place, documented in the node's docstring too):
 
+- Every input is taken by header stamp (:mod:`.history`): each slip message is computed with the
+  latest value of each input stamped at or before it; staleness is stamp time (the slip's
+  stamp minus the value's), never wall time.
 - ``slip`` with a non-finite component: nothing is published, ``slip_rejected`` counts it.
-- ``load``: non-finite -> rejected, the previous valid load is held. ``Fz <= 0`` is a wheel off
-  the ground: the published wrench is all zero with force.z = 0 (``no_contact`` counts it);
-  the model is not evaluated there.
-- ``load`` never received or older than its timeout: policy ``nominal`` (default) uses FNOMIN,
-  so force.z of the output shows it, counted in ``fallback.load``; policy ``skip`` publishes
-  nothing for that slip and counts it in ``skipped_no_load``.
-- ``pressure``/``temperature``/``velocity`` never received -> the file's nominal value (INFLPRES
-  else NOMPRES, NOMTEMP, LONGVL) silently (the INTERFACE rule); received once but older than
-  the timeout -> the nominal value, counted in ``fallback.<input>`` and warned about.
-- Non-finite pressure/temperature/velocity, negative gauge pressure, temperature below
-  absolute zero: rejected, previous value held.
+- A message that cannot be read (the node's raw-bytes path): dropped, counted in
+  ``slip_malformed`` or ``<input>.malformed``.
+- ``load``: non-finite -> rejected (not kept in the history). ``Fz <= 0`` is a wheel off the
+  ground: the published wrench is all zero with force.z = 0 (``no_contact`` counts it); the
+  model is not evaluated there.
+- ``load`` with no value for the slip (never received, stale, or only values stamped after the
+  slip): policy ``nominal`` (default) uses FNOMIN, so force.z of the output shows it, counted in
+  ``fallback.load.<state>``; policy ``skip`` publishes nothing, counted in ``skipped_no_load``.
+- ``pressure``/``temperature``/``velocity`` without a value -> the file's nominal value (INFLPRES
+  else NOMPRES, NOMTEMP, LONGVL), counted in ``fallback.<input>.<state>``; never received is the
+  INTERFACE rule and no warning, stale or ahead is warned about.
+- Non-finite pressure/temperature/velocity, negative gauge pressure, temperature below absolute
+  zero: rejected.
+- Every input (the slips too) outside the file's range counts in ``out_of_range.<input>``;
+  with ``limits`` it is saturated first (:mod:`.ranges`).
 - Model output not finite, or the model raising: nothing published, counted.
 - With an effects file (``effects``: the diagnosis' hidden states, :mod:`..model.states`), a
-  temperature or pressure that is not fresh takes the hidden tread or gas node's value instead
-  of the nominal one; the nodes step on the slip messages' header stamps and are driven by the
-  frictional power of the wheel's own previous output.
+  temperature or pressure without a fresh value takes the hidden tread or gas node's value
+  instead of the nominal one; the nodes step on the slip messages' header stamps, driven by the
+  frictional power of the wheel's own previous output, except by a sample with an input out of
+  range (it leaves no trace in them).
 - A .tir written by ``tire-model fit`` carries the envelope its fitted data covered
   (``[FIT_ENVELOPE]``: load, pressure, temperature cells): forces are computed all the same
-  outside it (extrapolation), ``outside_envelope`` counts those samples. An unreadable envelope
-  is not checked and ``last_error`` says why.
+  outside it (extrapolation), ``outside_envelope`` counts those answers (the inputs as
+  received, apart from the saturation at the file's ranges). An unreadable envelope is not
+  checked and ``last_error`` says why.
+
+Every slip message taken is counted in ``slip_in`` and either answered (``forces_out``) or
+counted under one of :data:`UNANSWERED`: ``slip_in == forces_out + sum(UNANSWERED)``.
 """
 
 from __future__ import annotations
@@ -32,13 +44,26 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from tire_model_ros.delivery import NODE, UNANSWERED, report_line
 from tire_model_ros.model.envelope import Envelope
 from tire_model_ros.model.states import EffectState
+from tire_model_ros.vocabulary import NODE_INPUTS, NS_PER_S
+from tire_model_ros.wheel.history import STATES, StampedHistory
+from tire_model_ros.wheel.ranges import SAMPLE_INPUTS, InputRanges, Sample
 
 if TYPE_CHECKING:
     from tire_model_ros.model import TireModel
+    from tire_model_ros.model.mf import Wrench
 
 ABSOLUTE_ZERO_DEGC = -273.15
+ZERO_WRENCH = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_LOWEST = {"load": -math.inf, "pressure": 0.0, "temperature": ABSOLUTE_ZERO_DEGC}
+_WHAT = {
+    "load": "load force.z",
+    "pressure": "gauge pressure",
+    "temperature": "temperature",
+    "velocity": "velocity linear.x",
+}
 
 
 @dataclass(frozen=True)
@@ -62,26 +87,49 @@ class Nominal:
         )
 
 
-@dataclass
-class Channel:
-    """Latest valid value of one input and its receive time [s, monotonic]."""
+@dataclass(frozen=True)
+class WheelModel:
+    """What a wheel computes with: the model, its nominal inputs, its input ranges and the
+    envelope of its fitted data (None: none, or unreadable and ``envelope_error`` says why)."""
 
-    value: float | None = None
-    t_rx: float = -math.inf
+    model: TireModel
+    nominal: Nominal
+    ranges: InputRanges
+    envelope: Envelope | None = None
+    envelope_error: str = ""
+
+    @classmethod
+    def of(cls, model: TireModel) -> WheelModel:
+        nominal, ranges = Nominal.from_params(model.params), InputRanges.from_params(model.params)
+        try:
+            return cls(model, nominal, ranges, Envelope.from_tir(model.tir))
+        except ValueError as exc:
+            return cls(model, nominal, ranges, None, f"envelope not checked: {exc}")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The node settings a slip sample needs: staleness [ns] per input (0 = never stale), the
+    limits, and the policy for a missing load."""
+
+    timeouts_ns: Mapping[str, int]
+    limits: bool = True
+    skip_without_load: bool = False
+
+    @classmethod
+    def of(cls, timeouts_s: Mapping[str, float], limits: bool, skip: bool) -> Settings:
+        return cls({k: round(v * NS_PER_S) for k, v in timeouts_s.items()}, limits, skip)
+
+
+@dataclass
+class Input:
+    """One input of a wheel: its stamped history and its counters."""
+
+    history: StampedHistory = field(default_factory=StampedHistory)
     received: int = 0
     rejected: int = 0
-    fallback_stale: int = 0  # slips computed with the nominal value because this was stale
-    fallback_never: int = 0  # slips computed with the nominal value, never received
-
-    def get(self, now: float, timeout: float, nominal: float) -> tuple[float, str]:
-        """Value to use and its state: 'ok', 'never' or 'stale'."""
-        if self.value is None:
-            self.fallback_never += 1
-            return nominal, "never"
-        if timeout > 0.0 and now - self.t_rx > timeout:
-            self.fallback_stale += 1
-            return nominal, "stale"
-        return self.value, "ok"
+    malformed: int = 0
+    fallback: dict[str, int] = field(default_factory=lambda: dict.fromkeys(STATES[1:], 0))
 
 
 @dataclass
@@ -101,9 +149,6 @@ class Throttle:
         return self._suppressed.pop(key, 0)
 
 
-ZERO_WRENCH = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-
-
 class WheelState:
     """Inputs and counters of one wheel; ``compute`` turns one slip sample into forces."""
 
@@ -111,44 +156,44 @@ class WheelState:
         self.prefix = prefix
         self.key = key
         self.slot = ""  # "" = shared model, else this wheel's key (own tir_file)
-        self.load = Channel()
-        self.pressure = Channel()
-        self.temperature = Channel()
-        self.velocity = Channel()
-        self.slip_in = 0
-        self.forces_out = 0
-        self.slip_rejected = 0
-        self.skipped_no_load = 0
-        self.no_contact = 0
-        self.output_nonfinite = 0
-        self.model_errors = 0
+        self.inputs = {name: Input() for name in NODE_INPUTS}
+        self.counts = dict.fromkeys(("slip_in", "forces_out", "no_contact", *UNANSWERED), 0)
+        self.counts["outside_envelope"] = 0
+        self.out_of_range = dict.fromkeys(SAMPLE_INPUTS, 0)
+        self.last_slip_ns: int | None = None
         self.last_error = ""
         self.effects: EffectState | None = None  # hidden states of an effects file
-        self.outside_envelope = 0
-        self._envelope: tuple[TireModel | None, Envelope | None] = (None, None)
 
-    # -- inputs: each returns None when accepted, else the reason it was rejected ----------
-    def set_load(self, Fz: float, now: float) -> str | None:
-        return self._set(self.load, Fz, now, "load force.z", lo=-math.inf)
-
-    def set_pressure(self, p_gauge: float, now: float) -> str | None:
-        return self._set(self.pressure, p_gauge, now, "gauge pressure", lo=0.0)
-
-    def set_temperature(self, T: float, now: float) -> str | None:
-        return self._set(self.temperature, T, now, "temperature", lo=ABSOLUTE_ZERO_DEGC)
-
-    def set_velocity(self, Vx: float, now: float) -> str | None:
-        return self._set(self.velocity, Vx, now, "velocity linear.x", lo=-math.inf)
-
-    @staticmethod
-    def _set(ch: Channel, x: float, now: float, what: str, lo: float) -> str | None:
-        if not math.isfinite(x) or x < lo:
+    # -- inputs --------------------------------------------------------------------------
+    def set_input(self, name: str, stamp_ns: int, x: float) -> str | None:
+        """Take one value of input ``name``; None when accepted, else why it was rejected."""
+        ch = self.inputs[name]
+        if not math.isfinite(x) or x < _LOWEST.get(name, -math.inf):
             ch.rejected += 1
-            return f"{what} {x!r} rejected (kept {ch.value!r})"
-        ch.value = float(x)
-        ch.t_rx = now
+            return f"{_WHAT[name]} {x!r} rejected"
+        ch.history.put(stamp_ns, float(x))
         ch.received += 1
         return None
+
+    def malformed(self, channel: str) -> None:
+        """Count a message of ``channel`` (slip or an input) that could not be read."""
+        if channel == "slip":
+            self.counts["slip_in"] += 1
+            self.counts["slip_malformed"] += 1
+        else:
+            self.inputs[channel].malformed += 1
+
+    def inactive(self) -> None:
+        """Count a slip message that arrived while the (managed) node was not active."""
+        self.counts["slip_in"] += 1
+        self.counts["slip_inactive"] += 1
+
+    def _value(self, name: str, stamp_ns: int, timeout_ns: int) -> tuple[float | None, str]:
+        ch = self.inputs[name]
+        value, state, _ = ch.history.at(stamp_ns, timeout_ns)
+        if state != "ok":
+            ch.fallback[state] += 1
+        return value, state
 
     # -- one slip sample -------------------------------------------------------------------
     def compute(
@@ -156,101 +201,132 @@ class WheelState:
         kappa: float,
         alpha: float,
         gamma: float,
-        now: float,
-        model: TireModel,
-        nominal: Nominal,
-        timeouts: Mapping[str, float],
-        limits: bool,
-        skip_without_load: bool = False,
-        stamp: float = 0.0,
-    ) -> tuple[tuple[float, float, float, float, float, float] | None, list[str]]:
-        """Forces for one slip sample (``stamp``: its header time [s]) and the events worth a
-        (throttled) log line.
-
-        Returns (None, events) when nothing must be published; the reason is counted.
+        stamp_ns: int,
+        wm: WheelModel,
+        settings: Settings,
+    ) -> tuple[Wrench | None, list[str]]:
+        """Forces for one slip sample stamped ``stamp_ns`` and the events worth a (throttled)
+        log line. Returns (None, events) when nothing must be published; the reason is counted.
         """
-        self.slip_in += 1
-        events: list[str] = []
+        self.counts["slip_in"] += 1
+        self.last_slip_ns = stamp_ns
         if not (math.isfinite(kappa) and math.isfinite(alpha) and math.isfinite(gamma)):
-            self.slip_rejected += 1
+            self.counts["slip_rejected"] += 1
             return None, [f"slip_rejected: non-finite slip ({kappa}, {alpha}, {gamma})"]
-        Fz, state = self.load.get(now, timeouts["load"], nominal.Fz)
-        if state != "ok":
-            if skip_without_load:
-                self.skipped_no_load += 1
-                return None, [f"skipped_no_load: load {state}, slip not published"]
-            events.append(f"fallback.load: load {state}, using FNOMIN {nominal.Fz} N")
+        events: list[str] = []
+        Fz = self._load(stamp_ns, wm, settings, events)
+        if Fz is None:
+            return None, events
         if Fz <= 0.0:
-            self.no_contact += 1
-            self.forces_out += 1
-            if self.effects is not None:
-                self.effects.idle(stamp)
-            return ZERO_WRENCH, events
-        p, sp = self.pressure.get(now, timeouts["pressure"], nominal.p)
-        T, sT = self.temperature.get(now, timeouts["temperature"], nominal.T)
-        Vx, sV = self.velocity.get(now, timeouts["velocity"], nominal.Vx)
-        for name, s, value in (("pressure", sp, p), ("temperature", sT, T), ("velocity", sV, Vx)):
-            if s == "stale":
-                events.append(f"fallback.{name}: {name} stale, using nominal {value}")
+            return self._no_contact(stamp_ns), events
+        p, T, Vx, measured = self._optional(stamp_ns, wm, settings, events)
+        used, outside = wm.ranges.saturate((Fz, kappa, alpha, gamma, p, T, Vx), settings.limits)
+        for name in outside:
+            self.out_of_range[name] += 1
+        if outside:
+            how = "saturated" if settings.limits else "limits off: not saturated"
+            events.append(f"out_of_range: {', '.join(outside)} ({how})")
+        out, problems = self._evaluate(wm, settings, stamp_ns, used, measured, not outside)
+        if out is not None and self._outside_envelope(wm, Fz, p, T):
+            self.counts["outside_envelope"] += 1
+        return out, events + problems
+
+    def _outside_envelope(self, wm: WheelModel, Fz: float, p: float, T: float) -> bool:
+        """Whether the inputs leave the envelope of the model's fitted data."""
+        if wm.envelope_error:
+            self.last_error = wm.envelope_error
+        return wm.envelope is not None and not wm.envelope.contains_one(Fz, p, T)
+
+    def _load(
+        self, stamp_ns: int, wm: WheelModel, settings: Settings, events: list[str]
+    ) -> float | None:
+        """The load for the slip, FNOMIN when it has none; None: skip the slip (counted)."""
+        Fz, state = self._value("load", stamp_ns, settings.timeouts_ns["load"])
+        if Fz is not None:
+            return Fz
+        if settings.skip_without_load:
+            self.counts["skipped_no_load"] += 1
+            events.append(f"skipped_no_load: load {state}, slip not published")
+            return None
+        events.append(f"fallback.load: load {state}, using FNOMIN {wm.nominal.Fz} N")
+        return wm.nominal.Fz
+
+    def _optional(
+        self, stamp_ns: int, wm: WheelModel, settings: Settings, events: list[str]
+    ) -> tuple[float, float, float, tuple[bool, bool]]:
+        """(p, T, Vx) for the slip, nominal where none, and whether p and T were measured."""
+        out = []
+        nominal = {"pressure": wm.nominal.p, "temperature": wm.nominal.T, "velocity": wm.nominal.Vx}
+        for name, nom in nominal.items():
+            value, state = self._value(name, stamp_ns, settings.timeouts_ns[name])
+            if value is None and state != "never":  # never received: the INTERFACE rule
+                events.append(f"fallback.{name}: {name} {state}, using nominal {nom}")
+            out.append(value)
+        p, T, Vx = (
+            v if v is not None else nom for v, nom in zip(out, nominal.values(), strict=True)
+        )
+        return p, T, Vx, (out[0] is not None, out[1] is not None)
+
+    def _no_contact(self, stamp_ns: int) -> Wrench:
+        self.counts["no_contact"] += 1
+        self.counts["forces_out"] += 1
+        if self.effects is not None:
+            self.effects.idle(stamp_ns / NS_PER_S)
+        return ZERO_WRENCH
+
+    def _evaluate(
+        self,
+        wm: WheelModel,
+        settings: Settings,
+        stamp_ns: int,
+        used: Sample,
+        measured: tuple[bool, bool],
+        drive: bool,
+    ) -> tuple[Wrench | None, list[str]]:
+        """The model (with the effects' hidden states, which ``drive`` may leave untouched)."""
+        Fz, kappa, alpha, gamma, p, T, Vx = used
         try:
             if self.effects is None:
-                out = model.evaluate_one(Fz, kappa, alpha, gamma, Vx, p, T, limits=limits)
+                out = wm.model.evaluate_one(Fz, kappa, alpha, gamma, Vx, p, T, settings.limits)
             else:
+                nom = wm.nominal
                 out = self.effects.evaluate(
-                    model,
-                    stamp,
-                    Fz,
-                    kappa,
-                    alpha,
-                    gamma,
-                    Vx,
-                    T if sT == "ok" else None,
-                    p if sp == "ok" else None,
-                    nominal.p,
-                    nominal.T,
-                    nominal.Fz,
-                    limits,
-                )
+                    wm.model, stamp_ns / NS_PER_S, Fz, kappa, alpha, gamma, Vx,
+                    T if measured[1] else None, p if measured[0] else None,
+                    nom.p, nom.T, nom.Fz, settings.limits, drive=drive,
+                )  # fmt: skip
         except Exception as exc:  # whatever the model raises, the node keeps running
-            self.model_errors += 1
+            self.counts["model_errors"] += 1
             self.last_error = f"{type(exc).__name__}: {exc}"
-            return None, [f"model_error: {self.last_error}"]
+            return None, [f"model_errors: {self.last_error}"]
         if not all(math.isfinite(x) for x in out):
-            self.output_nonfinite += 1
-            return None, [f"output_nonfinite: inputs Fz={Fz} kappa={kappa} alpha={alpha}"]
-        if self._outside(model, Fz, p, T):
-            self.outside_envelope += 1
-        self.forces_out += 1
-        return out, events
+            self.counts["output_nonfinite"] += 1
+            return None, [f"output_nonfinite: inputs {used}"]
+        self.counts["forces_out"] += 1
+        return out, []
 
-    def _outside(self, model: TireModel, Fz: float, p: float, T: float) -> bool:
-        """Whether the inputs leave the envelope of the model's fitted data (read once per
-        model; a model without one: never)."""
-        if self._envelope[0] is not model:
-            try:
-                self._envelope = (model, Envelope.from_tir(model.tir))
-            except ValueError as exc:
-                self._envelope = (model, None)
-                self.last_error = f"envelope not checked: {exc}"
-        env = self._envelope[1]
-        return env is not None and not env.contains_one(Fz, p, T)
-
+    # -- reports -----------------------------------------------------------------------------
     def counters(self) -> dict[str, int]:
-        """Cumulative counts for the diagnostics report."""
-        out = {
-            "slip_in": self.slip_in,
-            "forces_out": self.forces_out,
-            "slip_rejected": self.slip_rejected,
-            "skipped_no_load": self.skipped_no_load,
-            "no_contact": self.no_contact,
-            "output_nonfinite": self.output_nonfinite,
-            "model_errors": self.model_errors,
-            "outside_envelope": self.outside_envelope,
-        }
-        for name in ("load", "pressure", "temperature", "velocity"):
-            ch: Channel = getattr(self, name)
+        """Cumulative counts for the diagnostics report and the final summary."""
+        out = dict(self.counts)
+        for name, ch in self.inputs.items():
             out[f"{name}.received"] = ch.received
             out[f"{name}.rejected"] = ch.rejected
-            out[f"fallback.{name}.stale"] = ch.fallback_stale
-            out[f"fallback.{name}.never"] = ch.fallback_never
+            out[f"{name}.malformed"] = ch.malformed
+            for state, n in ch.fallback.items():
+                out[f"fallback.{name}.{state}"] = n
+        for name, n in self.out_of_range.items():
+            out[f"out_of_range.{name}"] = n
         return out
+
+    def input_age_s(self, name: str) -> float | None:
+        """Stamp time [s] from the newest value of ``name`` to the last slip, None if none."""
+        latest = self.inputs[name].history.latest()
+        if latest is None or self.last_slip_ns is None:
+            return None
+        return (self.last_slip_ns - latest[1]) / NS_PER_S
+
+
+def final_line(prefix: str, counts: Mapping[str, int]) -> str:
+    """The node's last word on a wheel (printed at exit): every counter (:mod:`..delivery`)."""
+    return report_line(NODE, prefix, counts)

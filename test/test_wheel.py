@@ -1,0 +1,213 @@
+"""The node's per-wheel logic without ROS: inputs aligned by header stamp with the offline
+tool's rule, staleness in stamp time, saturation counted, every slip accounted for."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import DEFAULT_TIR
+
+from tire_model_ros.delivery import NODE, parse_reports
+from tire_model_ros.model import TireModel
+from tire_model_ros.model.states import EffectState, Node, WheelEffects
+from tire_model_ros.recording.align import hold_latest, latest_at_or_before
+from tire_model_ros.vocabulary import NODE_INPUTS, NS_PER_S
+from tire_model_ros.wheel.history import StampedHistory
+from tire_model_ros.wheel.state import (
+    UNANSWERED,
+    Settings,
+    WheelModel,
+    WheelState,
+    final_line,
+)
+
+S = NS_PER_S
+
+
+@pytest.fixture(scope="module")
+def wm() -> WheelModel:
+    return WheelModel.of(TireModel.from_file(DEFAULT_TIR))
+
+
+def settings(timeout_s: float = 0.0, limits: bool = True, skip: bool = False) -> Settings:
+    return Settings.of(dict.fromkeys(NODE_INPUTS, timeout_s), limits, skip)
+
+
+def test_history_takes_the_offline_rule_in_any_arrival_order():
+    """Random stamps put in a random order: every lookup equals the offline reader's
+    latest_at_or_before on the sorted stamps (of equal stamps the later arrival)."""
+    rng = np.random.default_rng(3)
+    stamps = np.sort(rng.integers(0, 50, 40)) * 1_000_000  # with repeats
+    values = rng.normal(size=40)
+    h = StampedHistory()
+    order = rng.permutation(40)
+    for i in order:
+        h.put(int(stamps[i]), float(values[i]))
+    kept = sorted(range(40), key=lambda i: (stamps[i], list(order).index(i)))
+    s_sorted = stamps[kept]
+    for t in rng.integers(-5, 55, 60) * 1_000_000:
+        value, state, _ = h.at(int(t), 0)
+        i = latest_at_or_before(s_sorted, np.array([t]))[0]
+        if i < 0:
+            assert state == "ahead" and value is None
+        else:
+            assert state == "ok" and value == values[kept[i]]
+    assert len(h) == 40
+
+
+def test_history_is_short_and_keeps_the_newest():
+    h = StampedHistory(capacity=8)
+    for k in range(100):
+        h.put(k * 10, float(k))
+    assert len(h) == 8 and h.latest() == (99.0, 990)
+    assert h.at(925, 0)[:2] == (92.0, "ok")
+    assert h.at(900, 0)[1] == "ahead"  # older than the history holds
+    h.put(955, -1.0)  # late arrival, put in its place
+    assert h.at(957, 0)[:2] == (-1.0, "ok") and h.at(990, 0)[0] == 99.0
+    assert h.at(990, 5)[:2] == (99.0, "ok") and h.at(996, 5)[1] == "stale"
+
+
+def test_node_and_offline_tool_pair_the_same_messages():
+    """A bag-like stream: load at 7 Hz with jitter, slips at 50 Hz; each slip's load by the
+    node's history equals align's choice for the whole recording (after the first load)."""
+    rng = np.random.default_rng(5)
+    load_ns = np.sort(rng.uniform(0, 3.0, 21) * S).astype(np.int64)
+    slip_ns = np.arange(0, 3.0, 0.02)
+    slip_ns = (slip_ns * S).astype(np.int64)
+    i, _ = hold_latest(load_ns, slip_ns)
+    w = WheelState("/w", "w")
+    arrivals = sorted([(t, "load", k) for k, t in enumerate(load_ns)]
+                      + [(t, "slip", k) for k, t in enumerate(slip_ns)])  # fmt: skip
+    model = WheelModel.of(TireModel.from_file(DEFAULT_TIR))
+    got = {}
+    for t, kind, k in arrivals:
+        if kind == "load":
+            w.set_input("load", int(t), 3000.0 + 100.0 * k)
+        else:
+            out, _ = w.compute(0.05, 0.0, 0.0, int(t), model, settings())
+            got[k] = out[2]
+    for k, t in enumerate(slip_ns):
+        if t >= load_ns[0]:
+            assert got[k] == 3000.0 + 100.0 * i[k], k
+        else:
+            assert got[k] == model.nominal.Fz  # the node cannot hold backwards
+
+
+def test_paused_and_fast_forwarded_stamp_time(wm):
+    """A 2 s pause between a load @100.0 s and a slip @100.2 s: fresh (0.2 s of stamp time);
+    10 s of stamp time later the load is stale whatever the wall clock did."""
+    w = WheelState("/w", "w")
+    st = settings(0.3)
+    w.set_input("load", 100 * S, 3000.0)
+    out, _ = w.compute(0.05, 0.0, 0.0, 100 * S + S // 5, wm, st)
+    assert out[2] == 3000.0
+    out, events = w.compute(0.05, 0.0, 0.0, 110 * S, wm, st)
+    assert out[2] == wm.nominal.Fz and w.inputs["load"].fallback["stale"] == 1
+    assert any("stale" in e for e in events)
+
+
+def test_future_stamped_load_waits_for_its_time(wm):
+    w = WheelState("/w", "w")
+    w.set_input("load", 150 * S, 3000.0)
+    w.set_input("load", 150 * S + S // 2, 5000.0)  # @150.5 s arrives before the slip @150.2 s
+    assert w.compute(0.05, 0.0, 0.0, 150 * S + S // 5, wm, settings())[0][2] == 3000.0
+    assert w.compute(0.05, 0.0, 0.0, 150 * S + S * 6 // 10, wm, settings())[0][2] == 5000.0
+    w2 = WheelState("/w", "w")
+    w2.set_input("load", 151 * S, 3000.0)  # only a load after the slip: none at or before it
+    out, _ = w2.compute(0.05, 0.0, 0.0, 150 * S, wm, settings())
+    assert out[2] == wm.nominal.Fz and w2.inputs["load"].fallback["ahead"] == 1
+    assert w2.compute(0.05, 0.0, 0.0, 150 * S, wm, settings(skip=True))[0] is None
+
+
+def test_saturation_of_every_input_is_counted(wm):
+    """500 degC and 1e12 N: saturated with the limits (force.z = FZMAX, Fx of TEMPMAX), as they
+    are without (500 degC flips Fx); counted either way; a light load is not raised."""
+    model = wm.model
+    P = model.params
+    w = WheelState("/w", "w")
+    for name, value in (("load", 1e12), ("temperature", 500.0), ("pressure", 9e5),
+                        ("velocity", 1e4)):  # fmt: skip
+        w.set_input(name, 0, value)
+    out, events = w.compute(5.0, 2.0, -1.0, S, wm, settings())
+    want = model.evaluate_one(P["FZMAX"], 5.0, 2.0, -1.0, 150.0, 9e5, 500.0)  # model saturates
+    assert out == pytest.approx(want, rel=1e-12) and out[2] == P["FZMAX"]
+    assert all(n == 1 for n in w.out_of_range.values())
+    assert "saturated" in events[-1]
+    w = WheelState("/w", "w")
+    w.set_input("load", 0, 5000.0)
+    w.set_input("temperature", 0, 500.0)
+    hot = w.compute(0.1, 0.0, 0.0, S, wm, settings(limits=False))[0]
+    nominal = w.compute(0.1, 0.0, 0.0, S, wm, settings(limits=True))[0]
+    assert hot[0] < 0.0 < nominal[0] and w.out_of_range["temperature"] == 2
+    ranged = WheelModel.of(model.with_params({"FZMIN": 500.0}))
+    w.set_input("load", 2 * S, 100.0)
+    out, _ = w.compute(0.1, 0.0, 0.0, 2 * S, ranged, settings())
+    assert out[2] == 100.0 and w.out_of_range["load"] == 1
+
+
+def test_every_slip_is_answered_or_counted(wm):
+    w = WheelState("/w", "w")
+    w.malformed("slip")
+    w.malformed("load")
+    w.inactive()
+    assert w.set_input("load", 0, math.nan) is not None
+    assert w.set_input("pressure", 0, -1.0) is not None
+    assert w.set_input("temperature", 0, -300.0) is not None
+    w.compute(math.nan, 0.0, 0.0, S, wm, settings())
+    w.compute(0.1, 0.0, 0.0, S, wm, settings(skip=True))  # no load yet
+    w.set_input("load", 0, -10.0)  # off the ground
+    assert w.compute(0.1, 0.0, 0.0, S, wm, settings())[0] == (0.0,) * 6
+    w.set_input("load", 0, 4000.0)
+    w.compute(0.1, 0.0, 0.0, 2 * S, wm, settings())
+    c = w.counters()
+    assert c["slip_in"] == c["forces_out"] + sum(c[k] for k in UNANSWERED) == 6
+    assert (c["slip_malformed"], c["slip_inactive"], c["slip_rejected"]) == (1, 1, 1)
+    assert (c["skipped_no_load"], c["no_contact"], c["load.malformed"]) == (1, 1, 1)
+    assert c["load.rejected"] == c["pressure.rejected"] == c["temperature.rejected"] == 1
+    assert parse_reports("x\n" + final_line("/w", c) + "\n", NODE) == {"/w": c}
+
+
+def test_an_absurd_slip_leaves_the_hidden_states_untouched(wm):
+    """kappa = -1e6 once between normal samples, with an effects file: saturated, counted, and
+    the hidden states go on as if it had not come (it does not drive them)."""
+    fx = WheelEffects(thermal=Node(4.0, 5e-3), thermal_slow=Node(60.0, 2e-5))
+    runs = []
+    for absurd in (False, True):
+        w = WheelState("/w", "w")
+        w.effects = EffectState(fx)
+        w.set_input("load", 0, 5000.0)
+        w.set_input("velocity", 0, 15.0)
+        rows = []
+        for k in range(100):
+            if absurd and k == 50:
+                out, _ = w.compute(-1e6, 0.05, 0.0, k * 10_000_000 - 5_000_000, wm, settings())
+                assert out is not None and all(math.isfinite(v) for v in out)
+            rows.append(w.compute(0.1 * math.sin(k / 9), 0.05, 0.0, k * 10_000_000, wm,
+                                  settings())[0])  # fmt: skip
+        runs.append((np.array(rows), w))
+    np.testing.assert_allclose(runs[1][0], runs[0][0], rtol=1e-12, atol=1e-9)
+    assert runs[1][1].out_of_range["kappa"] == 1 and runs[0][1].out_of_range["kappa"] == 0
+    assert runs[1][1].effects.y == pytest.approx(runs[0][1].effects.y, rel=1e-12)
+
+
+def test_first_start_notice_when_loading_the_kernels_takes_long():
+    """The node's start says what is happening when the kernels are not ready: quiet on a warm
+    cache; the notice, then the time taken, when loading takes longer than the threshold (here
+    a real numba compile of a small function against a zero threshold)."""
+    from numba import njit
+
+    from tire_model_ros.model.startup import COMPILE_NOTICE, cache_present, warm_up_announced
+
+    assert cache_present()  # make venv compiled them
+    quiet: list[str] = []
+    warm_up_announced(quiet.append, notice_after_s=60.0)
+    assert quiet == []
+    said: list[str] = []
+
+    def compile_one() -> float:
+        return float(njit(cache=False)(lambda x: math.sin(x) * 2.0)(1.0))
+
+    warm_up_announced(said.append, notice_after_s=0.0, load=compile_one)
+    assert said[0] == COMPILE_NOTICE and said[1].startswith("kernels ready after")

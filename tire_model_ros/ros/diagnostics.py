@@ -1,0 +1,80 @@
+"""The node's /diagnostics statuses (rclpy message types; the rule itself is ROS-free).
+
+Per wheel, per period (the counters' increase since the last report):
+
+- ERROR: slip messages went unanswered and none was answered.
+- WARN: slip messages unanswered (any reason of ``UNANSWERED``), inputs out of range
+  (saturated with the limits on, used as they are with them off), messages that could not be
+  read or values rejected, inputs missing for a slip (stale, stamped after it, or a load never
+  received), or an input topic subscribed again whose handover ended before every publisher
+  was matched (``resubscribe_unmatched``; a lossless handover is counted, not a warning).
+- OK, message "ok": none of these: every output is the model on in-range inputs.
+
+The message lists what happened with its count (``out_of_range.temperature +12 (saturated)``);
+the values carry every cumulative counter, each input's newest value and its age in stamp time
+(the last slip's stamp minus the value's), and the effects' hidden states.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+from tire_model_ros.delivery import UNANSWERED
+from tire_model_ros.vocabulary import NODE_INPUTS
+from tire_model_ros.wheel.state import WheelState
+
+
+def _is_warning(key: str) -> bool:
+    if key.startswith("out_of_range.") or key.endswith((".malformed", ".rejected")):
+        return True
+    if key.startswith("fallback."):
+        return not key.endswith(".never") or key == "fallback.load.never"
+    return key == "resubscribe_unmatched"  # a handover that may have lost messages
+
+
+def level_and_message(
+    delta: Mapping[str, int], limits: bool
+) -> tuple[bytes, str, list[str], list[str]]:
+    """(level, message, unanswered keys, warning keys) of one period's counter increases."""
+    lost = [k for k in UNANSWERED if delta.get(k)]
+    warn = [k for k, d in delta.items() if d and _is_warning(k)]
+    if lost and not delta.get("forces_out"):
+        level = DiagnosticStatus.ERROR
+    elif lost or warn:
+        level = DiagnosticStatus.WARN
+    else:
+        level = DiagnosticStatus.OK
+    how = "saturated" if limits else "limits off: not saturated"
+    parts = [
+        f"{k} +{delta[k]}" + (f" ({how})" if k.startswith("out_of_range.") else "")
+        for k in lost + warn
+    ]
+    return level, "; ".join(parts) if parts else "ok", lost, warn
+
+
+def wheel_status(
+    name: str,
+    w: WheelState,
+    delta: Mapping[str, int],
+    counts: Mapping[str, int],
+    tir_path: str,
+    limits: bool,
+) -> DiagnosticStatus:
+    """The status of one wheel for one period (module docstring)."""
+    level, message, _, _ = level_and_message(delta, limits)
+    st = DiagnosticStatus(name=name, hardware_id=w.prefix, level=level, message=message)
+    values = {"tir_file": tir_path, **{k: str(v) for k, v in counts.items()}}
+    for inp in NODE_INPUTS:
+        latest = w.inputs[inp].history.latest()
+        age = w.input_age_s(inp)
+        values[f"{inp}.value"] = "never received" if latest is None else repr(latest[0])
+        values[f"{inp}.age_s"] = "" if age is None else f"{age:.3f}"
+    if w.effects is not None:  # the hidden states, as an engineer would watch them
+        values["effects.tread_C"] = f"{w.effects.temperature_C:.2f}"
+        values.update({f"effects.{k}": f"{v:.4g}" for k, v in w.effects.y.items()})
+    if w.last_error:
+        values["last_model_error"] = w.last_error
+    st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+    return st
