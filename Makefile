@@ -33,6 +33,7 @@ bench: venv
 	$(PY) bench/bench_node.py
 	$(PY) bench/bench_recording.py
 	$(PY) bench/bench_fit.py
+	$(PY) bench/bench_import.py
 
 proof: venv
 	$(PY) bench/proof.py --jobs 2

@@ -314,7 +314,7 @@ def step_node(wheels: Wheels, diag: Diagnosis, tir: Path, improved: Path, out: P
         "--count",
         str(n_msgs),
         "--duration",
-        str(span / REPLAY_RATE + 60),
+        str(_replay_bound_s(span)),  # a bound, not the plan: it stops at --count
     ]
     play_cmd = [*tool("tire-model"), "play", str(bag), "--rate", str(REPLAY_RATE), "--wait", "10"]
     procs: list[subprocess.Popen[bytes]] = []
@@ -330,7 +330,7 @@ def step_node(wheels: Wheels, diag: Diagnosis, tir: Path, improved: Path, out: P
         # before it can be recorded (the node logs each match)
         matched = [f"{prefix}/forces: 1 subscriber(s) matched" for prefix in prefixes]
         _wait_logs(procs, logs, {"node": matched, "record": ["recording"]}, timeout_s=180.0)
-        out_play = run(play_cmd, "4", span / REPLAY_RATE * 4 + 60, env)
+        out_play = run(play_cmd, "4", _replay_bound_s(span), env)
         for line in out_play.strip().splitlines():
             if not line.startswith(PLAY):
                 say("4", line)
@@ -347,6 +347,13 @@ def step_node(wheels: Wheels, diag: Diagnosis, tir: Path, improved: Path, out: P
         raise RuntimeError(f"the recorder wrote no bag at {forces_bag}; see {logs}/record.log")
     accounted = account_for_loss(prefixes, out_play, logs)
     return compare(forces_bag, parts, improved, tir, diag) and accounted
+
+
+def _replay_bound_s(span_s: float) -> float:
+    """A generous bound on the replay of ``span_s`` of recording [s]: play waits for every
+    subscriber's acknowledgement, which a loaded machine slows down many times (a replay
+    planned for 30 s took over 3 min beside two diagnoses)."""
+    return span_s / REPLAY_RATE * 10.0 + 300.0
 
 
 def _wait_logs(

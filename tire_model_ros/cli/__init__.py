@@ -23,6 +23,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "record": ("tire_model_ros.cli.record_cmd", "record the node's force topics to a new bag"),
     "fit": ("tire_model_ros.cli.fit_cmd", "refit the model from recordings"),
     "diagnose": ("tire_model_ros.cli.diagnose_cmd", "explain a model/recording mismatch"),
+    "import": ("tire_model_ros.cli.import_cmd", "a TTC, TYDEX or CSV measurement as a recording"),
+    "export": ("tire_model_ros.cli.export_cmd", "a recording as a TTC, TYDEX or CSV file"),
 }
 
 

@@ -31,10 +31,15 @@ def print_salvage_report(bag: RawBag) -> None:
 def read_wheels(
     path: str | os.PathLike[str], wheels: Sequence[str] | None = None, salvage: bool = False
 ) -> dict[str, WheelSeries]:
-    """``read_recording`` that prints the salvage report (with ``salvage``) before aligning."""
-    from tire_model_ros.recording import read_raw, wheels_from_raw
+    """``read_recording`` that prints the salvage report (with ``salvage``) before aligning;
+    a measurement file (TTC, TYDEX, CSV) is imported on the fly (``open_recording``; it is no
+    bag, so there is nothing to salvage)."""
+    from tire_model_ros.importers import format_of
+    from tire_model_ros.recording import open_recording, read_raw, wheels_from_raw
     from tire_model_ros.recording.read import wheel_select
 
+    if format_of(path) is not None:
+        return open_recording(path, wheels)
     raw = read_raw(path, wheel_select(wheels), salvage=salvage)
     if salvage:
         print_salvage_report(raw)

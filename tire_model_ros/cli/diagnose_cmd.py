@@ -23,7 +23,11 @@ HELP = "locate, name and model a model/recording mismatch"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("bag", help="recording: rosbag2 folder, .mcap or .db3 file")
+    parser.add_argument(
+        "bag",
+        help="recording: rosbag2 folder, .mcap or .db3 file, or a measurement file imported "
+        "on the fly (.mat/.dat TTC, .tdx TYDEX, .csv)",
+    )
     parser.add_argument("--tir", required=True, help="the .tir property file to diagnose")
     parser.add_argument("--json", metavar="OUT", help="write the diagnosis JSON here")
     parser.add_argument("--report", metavar="DIR", help="write a report with plots into DIR")

@@ -17,12 +17,15 @@ OUT.tir and its report are written whole or not at all (``atomic.OutputSet``): s
 hidden folder ``.OUT.tir.partial`` beside OUT.tir, then renamed into place, the .tir first. A
 run interrupted while staging leaves only that folder, which the next run removes; one
 interrupted while renaming is finished by the next run. A fit with no stage fitted, or whose
-model is not a tyre on its operating range (``model.check``), writes nothing.
+model is not a tyre on its operating range (``model.check``), writes nothing; but when the
+stages were tried and none beat the noise, the start model already explains the data and is
+written as the result, with a note in the file and the report.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -42,7 +45,11 @@ HELP = "refit the model from recordings"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "bags", nargs="+", metavar="BAG", help="recording(s): rosbag2 folder or .mcap"
+        "bags",
+        nargs="+",
+        metavar="BAG",
+        help="recording(s): rosbag2 folder or .mcap, or a measurement file imported on the fly "
+        "(.mat/.dat TTC, .tdx TYDEX, .csv)",
     )
     parser.add_argument("--tir", required=True, metavar="START", help="start model (.tir)")
     parser.add_argument("-o", "--output", required=True, metavar="OUT.tir", help="fitted model")
@@ -152,7 +159,8 @@ def run(args: argparse.Namespace) -> int:
         return _run_extend(args, start, wheels, options, outputs, out, report_dir)
     result = fit_recording(wheels, start, options)
     fitted = [st["stage"] for st in result.report["stages"] if st["status"] == "fitted"]
-    if not fitted:
+    fit_note: str | None = result.report.get("note")
+    if not fitted and not fit_note:
         reasons = "; ".join(
             f"{st['stage']}: {st.get('reason', st['status'])}" for st in result.report["stages"]
         )
@@ -160,11 +168,17 @@ def run(args: argparse.Namespace) -> int:
     fault = check_model(result.model)
     if fault is not None:
         raise ValueError(f"the fitted model is not a tyre on its range: {fault}; nothing written")
+    tir = result.model.tir
+    if fit_note:  # the start model explains the data: it is the result, said in the file
+        tir = dataclasses.replace(
+            tir, path=None, preamble=(*tir.preamble, f"! tire-model fit: {fit_note}")
+        )
+        print(f"note: {fit_note}")
     report_dir.parent.mkdir(parents=True, exist_ok=True)
     T = [None if s.T is None else s.T for s in wheels]
     covered = envelope_of(start, wheels, RIG, T).filled()
     with outputs:
-        write_tir(covered.into(result.model.tir), outputs.path(out))
+        write_tir(covered.into(tir), outputs.path(out))
         report_md = write_fit_report(result, outputs.path(report_dir), overwrite=True)
         outputs.commit()
     held = result.report["metrics"]["overall"]["heldout"]
@@ -173,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
         for c in result.report["metrics"]["channels"]
         if held["after"][c]["n"] and held["before"][c]["rmse"] != held["after"][c]["rmse"]
     )
-    print(f"wrote {out} (stages: {', '.join(fitted)})")
+    print(f"wrote {out} (stages: {', '.join(fitted) or 'none; the start model'})")
     print(f"report {report_dir / report_md.name}")
     if summary:
         print(f"held-out rmse: {summary}")

@@ -6,9 +6,10 @@ channels of one or more :class:`WheelSeries`. The model is evaluated on the reco
 vectorised batch path, so one evaluation of 10^5 samples costs milliseconds and a fit of ten
 coefficients a few seconds.
 
-Residuals are scaled per channel by a robust estimate of the measurement noise (so Fx [N] and
-Mz [N m] weigh alike), and the robust loss switches from quadratic to linear at ``f_scale``
-noise levels: outliers and unmodelled spikes pull with a bounded force.
+Residuals are measured - model (the sign the fit report and the diagnosis use), scaled per
+channel by a robust estimate of the measurement noise (so Fx [N] and Mz [N m] weigh alike),
+and the robust loss switches from quadratic to linear at ``f_scale`` noise levels: outliers
+and unmodelled spikes pull with a bounded force.
 """
 
 from __future__ import annotations
@@ -376,7 +377,7 @@ def fit_coefficients(
         parts = []
         for c in channels:
             pred = np.asarray(getattr(out, c), dtype=np.float64)[masks[c]]
-            parts.append((pred - targets[c]) * scales[c])
+            parts.append((targets[c] - pred) * scales[c])  # measured - model, as everywhere
         r = np.concatenate(parts)
         nfev[0] += 1
         if progress is not None:
@@ -388,7 +389,7 @@ def fit_coefficients(
         out = predict(x)
         res = {}
         for c in channels:
-            d = np.asarray(getattr(out, c), dtype=np.float64)[masks[c]] - targets[c]
+            d = targets[c] - np.asarray(getattr(out, c), dtype=np.float64)[masks[c]]
             res[c] = float(np.sqrt(np.mean(d * d))) if len(d) else float("nan")
         return res
 

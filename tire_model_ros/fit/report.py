@@ -1,8 +1,14 @@
 """Fit report: RMSE, NRMSE and R^2 before and after, on fitted and held-out sweeps.
 
-Figures per channel and per operating condition (load, pressure and temperature level), written
-as markdown and JSON, plus PNG plots of measured against model (matplotlib, Agg backend).
-NRMSE = RMSE / (max - min of the measured channel on the same samples), as in INTERFACE.md.
+Figures per channel and per operating condition (load, pressure, inclination: the levels the
+segmentation found in the data; temperature in 10 degC bins), written as markdown and JSON,
+plus PNG plots (matplotlib, Agg backend) as an engineer reads them: each channel against its
+slip, one panel per condition (pressure, inclination, held slip) and one colour per load,
+measured dots and the fitted and start models' curves, each panel titled with its RMSE start
+-> fitted; held-out sweeps; residuals over time.
+Every axis carries its unit. Residuals are measured - model everywhere (the diagnosis' sign);
+``bias`` is their mean. NRMSE = RMSE / (max - min of the measured channel on the same
+samples), as in INTERFACE.md.
 """
 
 from __future__ import annotations
@@ -13,41 +19,62 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..atomic import write_atomic
-from ..vocabulary import FORCE_CHANNELS
+from ..vocabulary import FORCE_CHANNELS, SERIES_UNITS
 from .core import evaluate_on, stack_inputs
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from tire_model_ros.model import MFOutput, TireModel
-    from tire_model_ros.recording.series import WheelSeries
-
+    from ..model import MFOutput, TireModel
+    from ..recording.series import WheelSeries
     from .stages import FitResult
     from .sweeps import Segment
 
+Floats = npt.NDArray[np.float64]
+Panel = tuple[float | None, float | None, float | None]  # p [Pa], gamma [rad], held slip
+Members = list[tuple[int, npt.NDArray[np.intp]]]  # (wheel, sample indices)
+
 SETS = ("fitted", "heldout")
 MIN_LEVEL_FRACTION = 0.005  # condition levels with fewer samples are left out of the tables
+UNIT = {c: SERIES_UNITS[c] for c in FORCE_CHANNELS}
+SLIP_OF = {"Fx": "kappa", "My": "kappa", "Fy": "alpha", "Mx": "alpha", "Mz": "alpha"}
+# slip -> (axis label, factor from SI)
+SLIP_AXIS = {
+    "kappa": ("slip ratio kappa [-]", 1.0),
+    "alpha": ("slip angle alpha [deg]", 180 / math.pi),
+}
+# condition table -> (Segment.condition key, unit, factor from SI)
+CONDITIONS = {
+    "load": ("Fz", "N", 1.0),
+    "pressure": ("p", "kPa", 1e-3),
+    "inclination": ("gamma", "deg", 180 / math.pi),
+}
+TEMPERATURE_BIN_C = 10.0
+MAX_PANELS = 12  # conditions drawn per channel (those with the most samples)
+MAX_DOTS = 1500  # measured samples drawn per load curve
 
 
-def channel_metrics(measured: np.ndarray, predicted: np.ndarray) -> dict[str, float]:
-    """rmse [unit], nrmse [-], r2 [-] and n on the finite samples."""
+def channel_metrics(measured: Floats, predicted: Floats) -> dict[str, float]:
+    """rmse [unit], bias (mean of measured - model) [unit], nrmse [-], r2 [-] and n on the
+    finite samples."""
     ok = np.isfinite(measured) & np.isfinite(predicted)
     y, f = measured[ok], predicted[ok]
     if len(y) == 0:
-        return {"n": 0, "rmse": math.nan, "nrmse": math.nan, "r2": math.nan}
-    d = f - y
+        return {"n": 0, "rmse": math.nan, "bias": math.nan, "nrmse": math.nan, "r2": math.nan}
+    d = y - f
     rmse = float(np.sqrt(np.mean(d * d)))
     span = float(np.max(y) - np.min(y))
     sst = float(np.sum((y - y.mean()) ** 2))
     return {
         "n": len(y),
         "rmse": rmse,
+        "bias": float(np.mean(d)),
         "nrmse": rmse / span if span > 0 else math.nan,
         "r2": 1.0 - float(np.sum(d * d)) / sst if sst > 0 else math.nan,
     }
@@ -70,25 +97,27 @@ def _stack(values: Sequence[np.ndarray | None], lengths: Sequence[int]) -> np.nd
     )
 
 
-def _levels(model: TireModel, wheels: Sequence[WheelSeries]) -> dict[str, tuple[np.ndarray, str]]:
-    """Per sample level of each varying condition: (bin centre array, unit label)."""
-    P = model.params
-    fz0 = float(P["FNOMIN"])
-    p0 = float(P.get("NOMPRES", 0.0)) or 1e5
+def _levels(result: FitResult) -> dict[str, tuple[Floats, str]]:
+    """Per sample level of each condition, in its report unit: load, pressure, inclination
+    from the segments' condition levels (NaN while the condition changes), temperature in
+    ``TEMPERATURE_BIN_C`` bins."""
+    wheels = result.wheels
     lengths = [len(s) for s in wheels]
-    out = {
-        "load": (np.round(_stack([s.Fz for s in wheels], lengths) / (0.1 * fz0)) * 0.1 * fz0, "N")
-    }
-    if any(s.p is not None for s in wheels):
-        out["pressure"] = (
-            np.round(_stack([s.p for s in wheels], lengths) / (0.05 * p0)) * 0.05 * p0,
-            "Pa",
-        )
+    out = {}
+    for dim, (key, unit, factor) in CONDITIONS.items():
+        if all(getattr(s, key) is None for s in wheels):
+            continue
+        parts = []
+        for s, segs in zip(wheels, result.segments, strict=True):
+            level = np.full(len(s), np.nan)
+            for seg in segs:
+                if key in seg.condition:
+                    level[seg.index] = seg.condition[key] * factor
+            parts.append(level)
+        out[dim] = (np.concatenate(parts) if parts else np.zeros(0), unit)
     if any(s.T is not None for s in wheels):
-        out["temperature"] = (
-            np.round(_stack([s.T for s in wheels], lengths) / 10.0) * 10.0,
-            "degC",
-        )
+        T = _stack([s.T for s in wheels], lengths)
+        out["temperature"] = (np.round(T / TEMPERATURE_BIN_C) * TEMPERATURE_BIN_C, "degC")
     return out
 
 
@@ -119,7 +148,7 @@ def fit_metrics(result: FitResult) -> dict[str, Any]:
             for model_name in ("before", "after")
         }
     by_condition: dict[str, Any] = {}
-    for dim, (level, unit) in _levels(result.start_model, wheels).items():
+    for dim, (level, unit) in _levels(result).items():
         rows = []
         finite = np.isfinite(level)
         values, counts = np.unique(level[finite], return_counts=True)
@@ -156,11 +185,15 @@ def markdown(result: FitResult) -> str:
     rep = result.report
     met = rep["metrics"]
     lines = ["# Magic Formula fit report", ""]
+    if rep.get("note"):
+        lines += [f"**Note:** {rep['note']}", ""]
     lines.append(
         f"Samples: {rep['n_samples']} ({rep['n_train']} fitted, {rep['n_heldout']} "
-        f"held out: every {rep['holdout_every']}th sweep per condition; "
-        f"{rep['n_sweeps']} sweeps). Wheels: {', '.join(rep['wheels'])}. "
-        f"Fit time {rep.get('time_s', 0):.1f} s."
+        f"held out: every {rep['holdout_every']}th ramp per condition; "
+        f"{rep['n_sweeps']} sweeps in {rep.get('n_ramps', '?')} ramps). "
+        f"Wheels: {', '.join(rep['wheels'])}. "
+        f"Fit time {rep.get('time_s', 0):.1f} s. Residuals are measured - model; bias is "
+        "their mean."
     )
     lines += [
         "",
@@ -202,15 +235,16 @@ def markdown(result: FitResult) -> str:
         "",
         "## Accuracy",
         "",
-        "| set | channel | rmse before | rmse after | nrmse before | "
-        "nrmse after | R2 before | R2 after | n |",
-        "| --- " * 9 + "|",
+        "| set | channel | rmse before | rmse after | bias before | bias after | "
+        "nrmse before | nrmse after | R2 before | R2 after | n |",
+        "| --- " * 11 + "|",
     ]
     for set_name in SETS:
         for c in met["channels"]:
             b, a = met["overall"][set_name]["before"][c], met["overall"][set_name]["after"][c]
             lines.append(
-                f"| {set_name} | {c} | {_fmt(b['rmse'])} | {_fmt(a['rmse'])} | "
+                f"| {set_name} | {c} [{UNIT[c]}] | {_fmt(b['rmse'])} | {_fmt(a['rmse'])} | "
+                f"{_fmt(b['bias'])} | {_fmt(a['bias'])} | "
                 f"{_fmt(b['nrmse'], 3)} | {_fmt(a['nrmse'], 3)} | {_fmt(b['r2'], 4)} | "
                 f"{_fmt(a['r2'], 4)} | {a['n']} |"
             )
@@ -291,73 +325,189 @@ def write_fit_report(
 
 
 def _plots(result: FitResult, d: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    for name, fig in figures(result).items():
+        _save(fig, d / name)
+        plt.close(fig)
+
+
+def figures(result: FitResult) -> dict[str, Figure]:
+    """The report's matplotlib figures by file name (Agg backend; the caller closes them)."""
     import matplotlib
 
     matplotlib.use("Agg")
+    channels = result.report["metrics"]["channels"]
+    out = {f"fit_{c}.png": _plot_conditions(result, c) for c in channels}
+    out["fit_sweeps.png"] = _plot_sweeps(result, channels)
+    out["fit_residual_time.png"] = _plot_residuals(result, channels)
+    return out
+
+
+def _condition_samples(result: FitResult, c: str) -> dict[Panel, dict[float, Members]]:
+    """Samples of the sweeps of channel ``c``'s slip, by panel (pressure, inclination, held
+    slip levels) and load level: {panel: {load: [(wheel, indices)]}}."""
+    slip = SLIP_OF[c]
+    other = "alpha" if slip == "kappa" else "kappa"
+    out: dict[Panel, dict[float, Members]] = {}
+    for w, segs in enumerate(result.segments):
+        for seg in segs:
+            cond = seg.condition
+            if seg.kind != "ramp" or seg.slips != (slip,) or "Fz" not in cond:
+                continue
+            panel = (cond.get("p"), cond.get("gamma"), cond.get(other))
+            out.setdefault(panel, {}).setdefault(cond["Fz"], []).append((w, seg.index))
+    return out
+
+
+def _panel_title(panel: Panel, slip: str) -> str:
+    p, gamma, held = panel
+    other = "alpha" if slip == "kappa" else "kappa"
+    parts = []
+    if p is not None:
+        parts.append(f"p {p / 1000:.0f} kPa")
+    if gamma is not None:
+        parts.append(f"gamma {_deg(gamma)} deg")
+    if held is not None and abs(held) > (0.005 if other == "kappa" else math.radians(0.3)):
+        parts.append(f"alpha {_deg(held)} deg" if other == "alpha" else f"kappa {held:.3f}")
+    return ", ".join(parts) or "all samples"
+
+
+def _deg(rad: float) -> str:
+    """An angle [rad] in degrees with one decimal, never "-0.0"."""
+    return f"{round(math.degrees(rad), 1) + 0.0:.1f}"
+
+
+def _panel_rmse(result: FitResult, c: str, groups: Mapping[float, Members]) -> str:
+    """RMSE of measured - model of channel ``c`` on a panel's samples, start -> fitted model:
+    the improvement per condition, which one cloud of all samples would hide."""
+    rmse = []
+    for name in ("before", "after"):
+        d = np.concatenate(
+            [
+                getattr(result.wheels[w], c)[i]
+                - np.asarray(getattr(result.predictions[name][w], c))[i]
+                for members in groups.values()
+                for w, i in members
+            ]
+        )
+        rmse.append(float(np.sqrt(np.nanmean(d * d))))
+    return f"{c} rmse {_fmt(rmse[0], 3)} -> {_fmt(rmse[1], 3)} {UNIT[c]}"
+
+
+def _curve(
+    model: TireModel, wheels: Sequence[WheelSeries], members: Members, slip: str, grid: Floats
+) -> MFOutput:
+    """The model's force on a slip grid at the median inputs of ``members``' samples."""
+
+    def med(name: str) -> float | None:
+        vals = [getattr(wheels[w], name) for w, _ in members]
+        if any(v is None for v in vals):
+            return None
+        return float(
+            np.nanmedian(np.concatenate([v[i] for v, (_, i) in zip(vals, members, strict=True)]))
+        )
+
+    args: dict[str, Floats | None] = {}
+    for k in ("Fz", "kappa", "alpha", "gamma", "Vx", "p", "T"):
+        v = med(k)
+        args[k] = None if v is None else np.full(len(grid), v)
+    args[slip] = grid
+    out: MFOutput = evaluate_on(model, args)
+    return out
+
+
+def _plot_conditions(result: FitResult, c: str) -> Figure:
+    """Channel ``c`` against its slip: a panel per condition, a colour per load level."""
+    import matplotlib.pyplot as plt
+
+    slip = SLIP_OF[c]
+    label, factor = SLIP_AXIS[slip]
+    groups = _condition_samples(result, c)
+    size = {k: sum(len(i) for v in g.values() for _, i in v) for k, g in groups.items()}
+    panels = sorted(
+        sorted(groups, key=lambda k: -size[k])[:MAX_PANELS],
+        key=lambda k: tuple(-1e99 if v is None else v for v in k),
+    )
+    if not panels or all(getattr(s, c) is None for s in result.wheels):
+        fig, ax = plt.subplots(figsize=(6, 3))
+        ax.text(0.5, 0.5, f"no {slip} sweep with measured {c} in the recording", ha="center")
+        ax.set_axis_off()
+        return fig
+    ncol = min(3, len(panels))
+    nrow = -(-len(panels) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol, 3.6 * nrow + 0.8), squeeze=False)
+    cmap = plt.get_cmap("viridis")
+    loads = sorted({fz for g in groups.values() for fz in g})
+    rng = np.random.default_rng(0)
+    for ax, panel in zip(axes.ravel(), panels, strict=False):
+        for fz, members in sorted(groups[panel].items()):
+            colour = cmap(loads.index(fz) / max(1, len(loads) - 1))
+            x = np.concatenate([getattr(result.wheels[w], slip)[i] for w, i in members])
+            y = np.concatenate([getattr(result.wheels[w], c)[i] for w, i in members])
+            pick = rng.choice(len(x), min(len(x), MAX_DOTS), replace=False)
+            # the dots above the curves: the measurement is what the reader checks them on
+            ax.plot(x[pick] * factor, y[pick], ".", ms=2, color=colour, alpha=0.35, zorder=3)
+            grid = np.linspace(np.nanmin(x), np.nanmax(x), 121)
+            for model, style in ((result.start_model, "--"), (result.model, "-")):
+                f = np.asarray(getattr(_curve(model, result.wheels, members, slip, grid), c))
+                ax.plot(
+                    grid * factor,
+                    f,
+                    style,
+                    lw=1.2 if style == "-" else 0.8,
+                    color=colour,
+                    label=f"Fz {fz:.0f} N" if style == "-" else None,
+                )
+        rmse = _panel_rmse(result, c, groups[panel])
+        ax.set_title(f"{_panel_title(panel, slip)}\n{rmse} (start -> fitted)", fontsize=9)
+        ax.set_xlabel(label)
+        ax.set_ylabel(f"{c} [{UNIT[c]}]")
+        ax.legend(fontsize=7)
+    for ax in axes.ravel()[len(panels) :]:
+        ax.set_axis_off()
+    left = len(groups) - len(panels)
+    fig.suptitle(
+        f"{c} per condition: measured (dots), fitted model (solid), start model (dashed); "
+        "model at each load's median inputs"
+        + (f"; {left} more conditions not drawn" if left > 0 else ""),
+        fontsize=9,
+    )
+    fig.tight_layout()
+    return fig
+
+
+def _plot_residuals(result: FitResult, channels: Sequence[str]) -> Figure:
+    """Measured - model over time, start and fitted model."""
     import matplotlib.pyplot as plt
 
     wheels = result.wheels
     lengths = [len(s) for s in wheels]
-    channels = result.report["metrics"]["channels"]
-    train = np.concatenate(result.train_masks)
-    held = np.concatenate(result.heldout_masks)
-    rng = np.random.default_rng(0)
     pred = {
         k: {c: np.concatenate([np.asarray(getattr(o, c)) for o in outs]) for c in channels}
         for k, outs in result.predictions.items()
     }
     t = np.concatenate([s.t - s.t[0] if len(s) else s.t for s in wheels])
-    for c in channels:
-        y = _stack([getattr(s, c) for s in wheels], lengths)
-        fig, ax = plt.subplots(figsize=(6, 6))
-        for mask, label, color in ((train, "fitted", "tab:blue"), (held, "held out", "tab:red")):
-            idx = np.flatnonzero(mask & np.isfinite(y))
-            if len(idx) > 4000:
-                idx = np.sort(rng.choice(idx, 4000, replace=False))
-            ax.plot(
-                y[idx],
-                pred["before"][c][idx],
-                ".",
-                ms=1.5,
-                color="0.7",
-                label=f"start model ({label})",
-            )
-            ax.plot(
-                y[idx],
-                pred["after"][c][idx],
-                ".",
-                ms=1.5,
-                color=color,
-                label=f"fitted model ({label})",
-            )
-        lim = np.nanpercentile(y, [0.5, 99.5]) if np.any(np.isfinite(y)) else [0, 1]
-        ax.plot(lim, lim, "k-", lw=0.8)
-        ax.set_xlabel(f"measured {c}")
-        ax.set_ylabel(f"model {c}")
-        ax.set_title(f"{c}: model against measurement")
-        ax.legend(fontsize=7, markerscale=6)
-        fig.tight_layout()
-        _save(fig, d / f"fit_{c}.png")
-        plt.close(fig)
-    _plot_sweeps(result, d, channels, plt)
     fig, axes = plt.subplots(
         len(channels), 1, figsize=(10, 2.2 * len(channels) + 0.5), squeeze=False
     )
     step = max(1, len(t) // 20000)
     for ax, c in zip(axes[:, 0], channels, strict=True):
         y = _stack([getattr(s, c) for s in wheels], lengths)
-        ax.plot(t[::step], (pred["before"][c] - y)[::step], ",", color="0.6", label="start")
-        ax.plot(t[::step], (pred["after"][c] - y)[::step], ",", color="tab:blue", label="fitted")
-        ax.set_ylabel(f"{c} model - measured")
-    axes[-1, 0].set_xlabel("time since start of each wheel [s]")
+        ax.plot(t[::step], (y - pred["before"][c])[::step], ",", color="0.6", label="start model")
+        ax.plot(t[::step], (y - pred["after"][c])[::step], ",", color="tab:blue", label="fitted")
+        ax.set_ylabel(f"{c} measured - model [{UNIT[c]}]", fontsize=8)
+        ax.set_xlabel("time since start of each wheel [s]", fontsize=8)
+        ax.legend(fontsize=7, markerscale=10, loc="upper right")
     fig.tight_layout()
-    _save(fig, d / "fit_residual_time.png")
-    plt.close(fig)
+    return fig
 
 
-def _plot_sweeps(result: FitResult, d: Path, channels: Sequence[str], plt: ModuleType) -> None:
+def _plot_sweeps(result: FitResult, channels: Sequence[str]) -> Figure:
     """Force against slip on a few held-out sweeps: measured, start and fitted model."""
-    picks: list[tuple[int, Segment]] = []
+    import matplotlib.pyplot as plt
+
+    picks = []
     for w, (_s, segs, held) in enumerate(
         zip(result.wheels, result.segments, result.heldout_masks, strict=True)
     ):
@@ -384,9 +534,11 @@ def _plot_sweeps(result: FitResult, d: Path, channels: Sequence[str], plt: Modul
             if x_name == "kappa" and "Fx" in channels
             else ("Fy" if "Fy" in channels else channels[0])
         )
-        x = getattr(s, x_name)[seg.index]
+        label, factor = SLIP_AXIS[x_name]
+        x = getattr(s, x_name)[seg.index] * factor
         y = getattr(s, c)
         if y is None:
+            ax.set_axis_off()
             continue
         ax.plot(x, y[seg.index], ".", ms=2, color="0.3", label="measured")
         ax.plot(
@@ -405,14 +557,14 @@ def _plot_sweeps(result: FitResult, d: Path, channels: Sequence[str], plt: Modul
         )
         fz = float(np.nanmedian(s.Fz[seg.index]))
         ax.set_title(f"held-out {seg.label}, Fz {fz:.0f} N", fontsize=9)
-        ax.set_xlabel(x_name)
-        ax.set_ylabel(c)
+        ax.set_xlabel(label)
+        ax.set_ylabel(f"{c} [{UNIT[c]}]")
         ax.legend(fontsize=7)
     if not sel:
         axes[0, 0].text(0.5, 0.5, "no held-out slip sweep", ha="center")
+        axes[0, 0].set_axis_off()
     fig.tight_layout()
-    _save(fig, d / "fit_sweeps.png")
-    plt.close(fig)
+    return fig
 
 
 def _save(fig: Figure, path: Path) -> None:

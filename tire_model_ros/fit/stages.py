@@ -416,19 +416,17 @@ def physical_checks(
 # --- the staged fit -------------------------------------------------------------------------
 
 
-def _condition_keys(
-    model: TireModel, series: WheelSeries, segs: Sequence[Segment]
-) -> list[tuple[str, int, int]]:
-    """Per segment: (slip kind, load level, pressure level) for sweep-wise hold-out per
-    condition."""
-    fz0 = float(model.params["FNOMIN"])
-    p0 = float(model.params.get("NOMPRES", 0.0)) or 1.0
+def _condition_keys(series: WheelSeries, segs: Sequence[Segment]) -> list[tuple[str, float, float]]:
+    """Per segment: (swept slip, load level [N], pressure level [Pa]) as the segmentation found
+    them in the data, for sweep-wise hold-out per condition."""
     keys = []
     for seg in segs:
-        fz = float(np.nanmedian(series.Fz[seg.index])) if len(seg.index) else 0.0
-        p = float(np.nanmedian(series.p[seg.index])) if series.p is not None else p0
-        kind = "+".join(sorted(seg.direction))
-        keys.append((kind, round(fz / (0.1 * fz0)), round(p / (0.05 * p0))))
+        kind = "+".join(seg.slips) or "+".join(sorted(seg.direction))
+        fz = seg.condition.get("Fz")
+        if fz is None:
+            fz = float(np.nanmedian(series.Fz[seg.index])) if len(seg.index) else 0.0
+        p = seg.condition.get("p", 0.0) if series.p is not None else 0.0
+        keys.append((kind, round(fz, 1), round(p, 0)))
     return keys
 
 
@@ -498,7 +496,7 @@ def fit_recording(
     segments, train_masks, held_masks = [], [], []
     for s in wheels:
         segs = split_segments(s)
-        keys = _condition_keys(model, s, segs)
+        keys = _condition_keys(s, segs)
         held = holdout_mask(segs, len(s), keys, every=options.holdout_every)
         ok = usable_mask(s, options)
         segments.append(segs)
@@ -628,10 +626,17 @@ def fit_recording(
         "n_samples": int(sum(len(s) for s in wheels)),
         "n_train": int(sum(int(m.sum()) for m in train_masks)),
         "n_heldout": int(sum(int(m.sum()) for m in held_masks)),
-        "n_sweeps": int(sum(sum(1 for g in segs if g.kind == "ramp") for segs in segments)),
+        "n_sweeps": int(sum(len({g.sweep for g in segs if g.sweep >= 0}) for segs in segments)),
+        "n_ramps": int(sum(sum(1 for g in segs if g.kind == "ramp") for segs in segments)),
         "wheels": [_wheel_name(s) for s in wheels],
         "changed": _changed(start, model),
     }
+    statuses = {st["status"] for st in stage_reports}
+    if "fitted" not in statuses and "not significant" in statuses:
+        report["note"] = (
+            "no stage improved on the start model by more than fitting the noise would: the "
+            "start model already explains the data, and is the result unchanged"
+        )
     result = FitResult(model, report, start, wheels, train_masks, held_masks, segments)
     report["metrics"] = fit_metrics(result)
     report["time_s"] = time.perf_counter() - t_start

@@ -6,10 +6,12 @@
 metadata.yaml against them (a damaged bag is refused, or salvaged: ``salvage=True``; then
 :mod:`.salvage` writes what was recovered as a new bag),
 :mod:`.align` holds the one alignment rule of INTERFACE.md on stamp arrays, :mod:`.write`
-writes bags atomically, :mod:`.info` summarises one. No ROS import.
+writes bags atomically, :mod:`.info` summarises one, :mod:`.open` opens a bag or a
+measurement file (TTC, TYDEX, CSV, imported on the fly) alike. No ROS import.
 """
 
 from tire_model_ros.recording.align import hold_latest, latest_at_or_before, nearest
+from tire_model_ros.recording.open import open_recording
 from tire_model_ros.recording.read import (
     Channel,
     Damage,
@@ -41,6 +43,7 @@ __all__ = [
     "hold_latest",
     "latest_at_or_before",
     "nearest",
+    "open_recording",
     "read_raw",
     "read_recording",
     "wheels_from_raw",

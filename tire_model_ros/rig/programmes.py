@@ -29,6 +29,17 @@ Programmes
     load at 60 kPa and -10/40/80 degC at 220 kPa and 120 %; the temperature channel is the set
     temperature; ``sidewall`` on unless switched off, and the temperature law of ``heating``
     (SEED_TYRE_HEATING unless given) acts at the set temperature.
+``ttc_cornering``
+    An FSAE Tire Test Consortium style cornering run: continuous constant-rate slip-angle
+    sweeps 0 -> +A -> -A -> 0 over load blocks (1/0.5/1.5/0.75 FNOMIN) inside inclination
+    blocks (0/2/4 deg) inside pressure blocks (1/0.8/1.2 NOMPRES), with no pause between: the
+    load, inclination or pressure changes in a second at zero slip and the next sweep starts.
+    As on the real rig, the load and inclination follow the lateral force a little (5 % and
+    0.25 deg at full slip angle).
+``ttc_drive_brake``
+    The TTC's drive/brake run: slip-ratio sweeps 0 -> -k -> +k -> 0 at held slip angles
+    (0/-3/-6 deg) over load blocks (1/0.5/1.5 FNOMIN), inclination (0/2 deg) and pressure
+    (1/0.8/1.2 NOMPRES) blocks, again without pauses.
 ``track``
     Four wheels (``/car/fl``, ``/car/fr``, ``/car/rl``, ``/car/rr``) of a car lapping a
     circuit: load transfer, steering, braking (front bias) and rear-wheel traction.
@@ -173,6 +184,7 @@ class RigBuilder:
         self.default_effects: dict[str, Mapping[str, float]] = {}
         self.default_omit: tuple[str, ...] = ()
         self.n = 0
+        self.alpha_hold = 0.0  # slip angle [rad] that set-up transitions keep (drive/brake)
         self.run_index = 0
         self.speed = tyre.LONGVL  # the session's reference belt speed
 
@@ -240,7 +252,7 @@ class RigBuilder:
             "transition",
             "set-up",
             zeros,
-            zeros,
+            np.full(m, self.alpha_hold),
             gamma=ramps["gamma"],
             Fz=ramps["Fz"],
             Vx=ramps["Vx"],
@@ -286,16 +298,25 @@ class RigBuilder:
         reverse: bool = False,
         kappa: float = 0.0,
         label: str = "lateral",
+        follow: tuple[float, float] = (0.0, 0.0),
     ) -> None:
-        """0 -> +A -> -A -> 0 (reverse: 0 -> -A -> +A -> 0) at a constant slip-angle rate."""
+        """0 -> +A -> -A -> 0 (reverse: 0 -> -A -> +A -> 0) at a constant slip-angle rate.
+
+        ``follow`` = (load fraction, inclination [deg]) that the rig's load and inclination
+        move by at full slip angle, proportionally to alpha/A (a compliant rig)."""
         A = amplitude_deg * DEG * (-1.0 if reverse else 1.0)
         rate = rate_deg_s * self.rate_scale * DEG
         alpha = self._path([0.0, A, -A, 0.0], rate)
+        share = alpha / abs(A) if A else np.zeros(len(alpha))
+        Fz = self.state["Fz"] * (1.0 + follow[0] * share)
+        gamma = self.state["gamma"] + follow[1] * DEG * share
         self._append(
             "lateral_sweep",
             label,
             np.full(len(alpha), kappa),
             alpha,
+            gamma=gamma,
+            Fz=Fz,
             **self._info(amplitude_deg=amplitude_deg, rate_deg_s=rate / DEG, reverse=bool(reverse)),
         )
 
@@ -318,6 +339,16 @@ class RigBuilder:
             np.full(len(kappa), alpha_deg * DEG),
             **self._info(kappa_max=kappa_max, rate_per_s=rate, reverse=bool(reverse)),
         )
+
+    def hold_slip_angle(self, alpha_deg: float, rate_deg_s: float = 4.0) -> None:
+        """Ramp the slip angle to a value that is held (slip-ratio sweeps and set-up
+        transitions keep it) until the next call: a drive/brake run's slip-angle block."""
+        a = alpha_deg * DEG
+        if a == self.alpha_hold:
+            return
+        ramp = self._path([self.alpha_hold, a], rate_deg_s * DEG)
+        self._append("transition", "alpha hold", np.zeros(len(ramp)), ramp)
+        self.alpha_hold = a
 
     def combined_sweep(
         self, alpha_deg: float, kappa_max: float = 0.12, rate_per_s: float = 0.05
@@ -657,6 +688,58 @@ def _special_conditions(b: RigBuilder, opt: dict[str, Any]) -> None:
         b.set_state(T=amb, duration_s=3.0)
 
 
+# Load, inclination and pressure blocks of the TTC-style runs (fractions of FNOMIN and
+# NOMPRES, deg), in the order the consortium's runs visit them (not monotone).
+TTC_LOADS = (1.0, 0.5, 1.5, 0.75)
+TTC_INCLINATIONS_DEG = (0.0, 2.0, 4.0)
+TTC_PRESSURES = (1.0, 0.8, 1.2)
+TTC_FOLLOW = (0.05, 0.25)  # load fraction, inclination [deg] at full slip angle
+
+
+def _ttc_pressures(opt: dict[str, Any]) -> tuple[float, ...]:
+    return TTC_PRESSURES if opt["vary_pressure"] else TTC_PRESSURES[:1]
+
+
+def _ttc_cornering(b: RigBuilder, opt: dict[str, Any]) -> None:
+    ty, A = b.tyre, opt["amplitude_deg"]
+    b.set_state(Fz=ty.FNOMIN, duration_s=1.0)
+    for _ in range(2):  # conditioning sweeps at the nominal load
+        b.lateral_sweep(A, rate_deg_s=4.0, label="conditioning", follow=TTC_FOLLOW)
+    for _ in range(opt["repeats"]):
+        for pf in _ttc_pressures(opt):
+            b.set_state(p=pf * ty.NOMPRES, duration_s=2.0)
+            for g in TTC_INCLINATIONS_DEG:
+                for f in TTC_LOADS:
+                    b.set_state(Fz=f * ty.FNOMIN, gamma=g * DEG, duration_s=1.0)
+                    b.lateral_sweep(
+                        A,
+                        rate_deg_s=4.0,
+                        label=f"cornering p={pf:g} gamma={g:g}deg Fz={f:g}",
+                        follow=TTC_FOLLOW,
+                    )
+
+
+def _ttc_drive_brake(b: RigBuilder, opt: dict[str, Any]) -> None:
+    ty, k = b.tyre, opt["kappa_max"]
+    b.set_state(Fz=ty.FNOMIN, duration_s=1.0)
+    b.longitudinal_sweep(k, rate_per_s=0.1, label="conditioning")
+    for _ in range(opt["repeats"]):
+        for pf in _ttc_pressures(opt):
+            b.set_state(p=pf * ty.NOMPRES, duration_s=2.0)
+            for g in TTC_INCLINATIONS_DEG[:2]:
+                for a in (0.0, -3.0, -6.0):
+                    b.hold_slip_angle(a)
+                    for f in TTC_LOADS[:3]:
+                        b.set_state(Fz=f * ty.FNOMIN, gamma=g * DEG, duration_s=1.0)
+                        b.longitudinal_sweep(
+                            k,
+                            rate_per_s=0.1,
+                            alpha_deg=a,
+                            label=f"drive/brake p={pf:g} gamma={g:g}deg alpha={a:g}deg Fz={f:g}",
+                        )
+                b.hold_slip_angle(0.0)
+
+
 _RIG: dict[str, Callable[[RigBuilder, dict[str, Any]], None]] = {
     "flat_trac": _flat_trac,
     "lateral_sweeps": _lateral_sweeps,
@@ -667,6 +750,8 @@ _RIG: dict[str, Callable[[RigBuilder, dict[str, Any]], None]] = {
     "transient": _transient,
     "safe_envelope": _safe_envelope,
     "special_conditions": _special_conditions,
+    "ttc_cornering": _ttc_cornering,
+    "ttc_drive_brake": _ttc_drive_brake,
 }
 PROGRAMMES = (*_RIG, "track")
 

@@ -29,6 +29,8 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
+from tire_model_ros.model.params import PARAMETERS
+
 from ..prepare import Context
 
 Array = npt.NDArray[np.float64]
@@ -146,11 +148,25 @@ def coefficient_params(
     ctx: Context, names: list[str], scales: list[float], span: float = 3.0
 ) -> list[Param]:
     """Additive changes of .tir coefficients (0 = the file's value), bounded at +-``span``
-    times the larger of the typical scale and the file's magnitude."""
+    times the larger of the typical scale and the file's magnitude, and within the
+    coefficient's range (``model.params``: the node refuses a file outside it)."""
     out = []
     for k, s in zip(names, scales, strict=True):
         if k not in ctx.base:
             continue
         big = span * max(s, abs(ctx.base[k]))
-        out.append(Param(k, 0.0, -big, big, max(s, 0.1 * abs(ctx.base[k]))))
+        lo, hi = _table_range(k, ctx.base[k])
+        out.append(Param(k, 0.0, max(-big, lo), min(big, hi), max(s, 0.1 * abs(ctx.base[k]))))
     return out
+
+
+def _table_range(name: str, value: float) -> tuple[float, float]:
+    """The change of ``name`` from ``value`` its range allows (0 always: the file's own)."""
+    spec = PARAMETERS.get(name)
+    lo, hi = -np.inf, np.inf
+    if spec is not None and spec.minimum is not None:
+        margin = 1e-3 * max(abs(spec.minimum), abs(value), 1e-3) if spec.strict_min else 0.0
+        lo = min(spec.minimum + margin - value, 0.0)
+    if spec is not None and spec.maximum is not None:
+        hi = max(spec.maximum - value, 0.0)
+    return lo, hi
