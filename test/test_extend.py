@@ -99,6 +99,27 @@ def test_fused_model_follows_the_tyre_beyond_the_rig(fused, tyre):
             assert nrmse["out"] < 0.03 and nrmse["out"] < nrmse["start"] / 2, (name, c, nrmse)
 
 
+def test_fe_table_imported_as_csv_extends_the_rig(fused):
+    """An FE tool's table: the simulation written as CSV (``export``), brought in with
+    ``import --format csv`` and used as the SIM of ``fit --extend``."""
+    d, _ = fused
+    for cmd in (
+        ["export", str(d / "sim"), "-o", str(d / "fe.csv")],
+        ["import", "--format", "csv", str(d / "fe.csv"), "-o", str(d / "fe")],
+    ):
+        res = subprocess.run([*TOOL, *cmd], capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
+    res = subprocess.run(
+        [*TOOL, "fit", str(d / "rig"), "--tir", str(d / "start.tir"), "-o", str(d / "fe.tir"),
+         "--extend", str(d / "fe")],
+        capture_output=True, text=True, timeout=FIT_TIMEOUT_S,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "the rig differs from it by: temperature" in res.stdout, res.stdout
+    P = TireModel.from_file(d / "fe.tir").params
+    assert P["PRESMIN"] <= 60e3 and P["TEMPMIN"] <= -10.0 and P["TEMPMAX"] >= 80.0
+
+
 # ------------------------------------------------------------------ sidewall contact
 @pytest.mark.parametrize("sidewall", [True, False])
 def test_diagnosis_names_sidewall_contact_where_only_it_is_left_out(tyre, sidewall):
