@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export PYTHONDONTWRITEBYTECODE :=
 
-.PHONY: venv test demo bench proof lint clean
+.PHONY: venv test demo bench proof proof-extend lint clean
 
 venv: $(STAMP)
 
@@ -37,6 +37,9 @@ bench: venv
 
 proof: venv
 	$(PY) bench/proof.py --jobs 2
+
+proof-extend: venv
+	$(PY) bench/proof_extend.py
 
 lint: venv
 	$(VENV)/bin/ruff check tire_model_ros test bench realities

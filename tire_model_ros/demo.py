@@ -12,6 +12,11 @@
    run offline on the same messages, and with the measured forces. Every slip message played
    is accounted for: recorded as a force, or counted by play, the node or the recorder; an
    unexplained loss fails the step.
+5. Compare the diagnosis with the rig's truth.
+6. Beyond the rig (the seed paper's extension): the same tyre on a rig's safe envelope (heating,
+   no temperature channel) and in a simulation at the special conditions (isothermal at set
+   temperatures, 60 kPa, up to 160 % load, -10 and 80 degC), fused with ``tire-model fit RIG
+   --extend SIM``; its report holds the operating envelope and the seed's three figures.
 
 Everything goes into ``./out/demo/run-<UTC time>/`` (or ``--out DIR``, which must not exist or
 be empty). ROS traffic stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) in a
@@ -53,6 +58,9 @@ MATCH_TOL_N = 1.0
 # REPLAY_EVERY-th slip sample (20 Hz of the rig's 100 Hz), at REPLAY_RATE times real time.
 REPLAY_EVERY = 5
 REPLAY_RATE = 20.0
+# The extension step's sessions at 20 Hz: the fused fit's sweeps are slow and smooth.
+EXTEND_RATE_HZ = 20.0
+EXTEND_FIGURES = ("envelope.png", "seed_pressure.png", "seed_load.png", "seed_temperature.png")
 
 
 _STEP = {"now": "set-up"}
@@ -547,6 +555,44 @@ def step_truth(out: Path, wheels: Wheels, diag: Diagnosis) -> None:
         )
 
 
+def step_extend(tir: Path, out: Path) -> None:
+    say("6 beyond the rig: extend the model with a simulation (the seed paper)")
+    sessions = {"rig": "safe_envelope", "simulation": "special_conditions"}
+    for i, (name, programme) in enumerate(sessions.items()):
+        run(
+            [*tool("tire-model"), "simulate", "--tir", str(tir), "--programme", programme,
+             "-o", str(out / name), "--seed", str(SEED + 1 + i), "--rate", str(EXTEND_RATE_HZ)],
+            "6",
+            600,
+        )  # fmt: skip
+        truth = out / f"{name}.truth.json"
+        if truth.is_file():  # the fit sees the recordings only
+            (out / "truth").mkdir(exist_ok=True)
+            os.replace(truth, out / "truth" / truth.name)
+    say(
+        "6",
+        "rig: loads 40-120 %, pressures 85-115 % of NOMPRES, heating, no temperature channel; "
+        "simulation: isothermal, 60/140/220 kPa, up to 160 % load, -10...80 degC, sidewall",
+    )
+    fused = out / "fused.tir"
+    stdout = run(
+        [*tool("tire-model"), "fit", str(out / "rig"), "--tir", str(tir), "-o", str(fused),
+         "--extend", str(out / "simulation"), "--quiet"],
+        "6",
+        3600,
+    )  # fmt: skip
+    for line in stdout.strip().splitlines():
+        say("6", line)
+    report = out / "fused_fit_report"
+    missing = [f for f in EXTEND_FIGURES if not (report / f).is_file()]
+    if missing:
+        raise RuntimeError(f"{report}: no {', '.join(missing)}")
+    figures = ", ".join(EXTEND_FIGURES)
+    say(
+        "6", f"{report / 'extension.md'}: the operating envelope and the seed's figures ({figures})"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=None, help="output dir (new or empty)")
@@ -562,6 +608,7 @@ def main(argv: list[str] | None = None) -> int:
         step_report(diag, wheels, out)
         ok = step_node(wheels, diag, tir, improved, out)
         step_truth(out, wheels, diag)
+        step_extend(tir, out)
     except (OSError, ValueError, RuntimeError, subprocess.TimeoutExpired) as exc:
         print(f"\ndemo: FAILED in step '{_STEP['now']}': {exc}", file=sys.stderr, flush=True)
         return 1

@@ -15,6 +15,7 @@ import math
 import sys
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -22,6 +23,9 @@ import numpy.typing as npt
 from tire_model_ros.atomic import write_atomic
 from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
 from tire_model_ros.vocabulary import FORCE_CHANNELS
+
+if TYPE_CHECKING:
+    from tire_model_ros.model import TireModel
 
 Array = npt.NDArray[np.float64]
 
@@ -39,7 +43,10 @@ every row written is finite, or nothing is written:
     rows each input was saturated on;
   - a row whose outputs are not finite (the plain equations of --no-limits far outside the
     file's ranges, or a coefficient set that breaks there) stops eval (exit 1): nothing is
-    written and the message counts those rows and names the first CSV lines.
+    written and the message counts those rows and names the first CSV lines;
+  - a .tir written by `tire-model fit` carries the envelope its fitted data covered
+    ([FIT_ENVELOPE]: load, pressure, temperature): rows outside it are evaluated all the same
+    (extrapolation, not saturation) and eval warns with their count and first CSV lines.
 The .tir file is refused (exit 1) when it cannot be trusted: see --lenient."""
 
 
@@ -150,6 +157,36 @@ def _saturation_note(model_params: Mapping[str, float], inputs: Mapping[str, Arr
     return "saturated to the file's ranges: " + ", ".join(touched) if touched else "none saturated"
 
 
+def _envelope_warning(
+    model: TireModel, inputs: Mapping[str, Array], lines: npt.NDArray[np.int64]
+) -> str:
+    """Rows outside the fitted envelope of the .tir: a warning on stderr, and the count for
+    the summary line ("no envelope" when the file carries none)."""
+    from tire_model_ros.model.envelope import Envelope
+
+    try:
+        env = Envelope.from_tir(model.tir)
+    except ValueError as exc:  # the coefficients are fine: evaluate, but say it loudly
+        print(f"warning: {exc}; the envelope is not checked", file=sys.stderr)
+        return "envelope unreadable"
+    if env is None:
+        return "no fitted envelope in the .tir"
+    T = inputs.get("T")
+    T = np.full(inputs["Fz"].shape, model.params["NOMTEMP"]) if T is None else T
+    outside = ~env.contains(inputs["Fz"], inputs["p"], T)
+    n = int(outside.sum())
+    if n:
+        where = ", ".join(str(k) for k in lines[outside][:SHOWN_ROWS])
+        more = ", ..." if n > SHOWN_ROWS else ""
+        print(
+            f"warning: {n} of {outside.size} rows outside the envelope the fit's data covered "
+            f"(load, pressure, temperature; [FIT_ENVELOPE] of {model.tir.path}): line(s) "
+            f"{where}{more}; their forces are extrapolated",
+            file=sys.stderr,
+        )
+    return f"{n} outside the fitted envelope"
+
+
 def write_csv_atomic(path: Path, columns: Mapping[str, Array], overwrite: bool) -> None:
     """Write the columns to ``path`` atomically; floats with repr() precision."""
     names = list(columns)
@@ -192,6 +229,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(_refusal(source, bad, lines, outputs))
     write_csv_atomic(target, {**inputs, **outputs}, overwrite=args.force)
     note = "limits off" if args.no_limits else _saturation_note(model.params, inputs)
-    print(f"wrote {target}: {inputs['Fz'].size} rows ({note})")
+    outside = _envelope_warning(model, inputs, lines)
+    print(f"wrote {target}: {inputs['Fz'].size} rows ({note}; {outside})")
     sys.stdout.flush()
     return 0

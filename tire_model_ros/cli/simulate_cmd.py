@@ -70,14 +70,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="NAME[:k=v,...]",
         help=f"switch an effect on (repeatable): {', '.join(EFFECTS)}; "
-        "'noise:off' switches the default noise off",
+        "'noise:off' switches the default noise off (and 'sidewall:off' the one "
+        "special_conditions switches on)",
     )
     parser.add_argument(
         "--omit",
         action="append",
         default=[],
         metavar="CHANNEL",
-        help=f"leave a channel out of the bag (repeatable or comma list): {', '.join(OMITTABLE)}",
+        help=f"leave a channel out of the bag (repeatable or comma list): {', '.join(OMITTABLE)}; "
+        "'none' records every channel (default: the programme's choice, e.g. safe_envelope "
+        "leaves the temperature out)",
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--rate", type=float, default=100.0, help="slip sample rate [Hz]")
@@ -103,7 +106,8 @@ def run(args: argparse.Namespace) -> int:
             continue
         name, params = parse_spec(spec, "--effect")
         effects[name] = params or True
-    omit = [c.strip() for item in args.omit for c in item.split(",") if c.strip()]
+    listed = [c.strip() for item in args.omit for c in item.split(",") if c.strip()]
+    omit = [c for c in listed if c != "none"] if listed else None
     wheels, truth = simulate_session(
         load_model(args.tir, args.lenient),
         prog,

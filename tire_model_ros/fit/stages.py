@@ -155,6 +155,7 @@ class FitOptions:
     warmup_s: float = 0.0  # drop the first seconds of every wheel (cold tyre)
     min_temperature: float | None = None  # drop samples colder than this [degC]
     stages: Sequence[str] | None = None  # names of the stages to run (default: all)
+    fixed: frozenset[str] = frozenset()  # coefficients kept at the start model's values
     max_samples: int = 6_000  # decimation per stage (100 Hz rows are autocorrelated)
     loss: str = "soft_l1"
     progress: bool | None = None  # None: show on a TTY only
@@ -545,7 +546,15 @@ def fit_recording(
                 "names": dropped,
                 "reason": "the recorded slip does not reach past the force peak",
             }
+        fixed = [k for k in names if k in options.fixed]
+        if fixed:
+            names = [k for k in names if k not in options.fixed]
+            entry["fixed"] = fixed
         entry.update({"samples": st.samples, "channels": list(channels), "names": names})
+        if not names:
+            entry["reason"] = "every coefficient it would fit is fixed"
+            progress.done(f"skipped: {entry['reason']}")
+            continue
         if not channels:
             entry["reason"] = f"no measured {'/'.join(st.channels)} on its {st.samples} samples"
             progress.done(f"skipped: {entry['reason']}")

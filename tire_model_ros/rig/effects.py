@@ -9,7 +9,8 @@ Effect names (``EFFECTS``) and the INTERFACE.md diagnosis word each one should b
 
 heating -> temperature, gas_pressure -> pressure, relaxation -> relaxation,
 delay -> time_delay, offset -> offset, camber -> camber, combined -> combined_slip,
-speed_friction -> speed, wear -> drift, mu_step -> drift, load_ripple / noise -> (none),
+speed_friction -> speed, wear -> drift, mu_step -> drift, sidewall -> sidewall_contact,
+load_ripple / noise -> (none),
 model_temperature -> (none: the file's own TTX/TTY terms act on the true surface temperature).
 """
 
@@ -29,6 +30,7 @@ from .thermal import HeatingParams
 EffectsSpec = str | Sequence[str] | Mapping[str, bool | Mapping[str, float | str] | None] | None
 
 DEG = math.pi / 180.0
+F64 = npt.NDArray[np.float64]
 
 # name -> default parameters. ``noise`` is on unless switched off (noise: False).
 DEFAULTS: dict[str, dict[str, float]] = {
@@ -48,6 +50,17 @@ DEFAULTS: dict[str, dict[str, float]] = {
     "noise": {"scale": 1.0, "colour": 0.5, "tau_s": 0.5},
     "load_ripple": {"amplitude": 0.02, "harmonic": 1.0, "recorded": 1.0},
     "model_temperature": {},
+    # Sidewall contact (the seed paper: at 60 kPa and 120-160 % load near 10 deg of slip
+    # angle, earlier the higher the load): deflections relative to the nominal one.
+    "sidewall": {
+        "deflection_on": 3.0,  # relative deflection where the gate is half open
+        "deflection_width": 0.25,  # ... and its smoothstep half-width
+        "alpha_on_deg": 11.0,  # contact slip angle at deflection_on
+        "alpha_per_deflection_deg": 1.5,  # contact comes earlier per unit of deflection beyond
+        "alpha_min_deg": 4.0,
+        "depth": 0.35,  # the share of Fy and Mz the crown can lose to the sidewall
+        "alpha_width_deg": 4.0,  # slip angle beyond contact over which the loss builds up
+    },
 }
 EFFECTS = tuple(DEFAULTS)
 # parameters that must be > 0 (time constants, lengths, widths, ratios) or >= 0
@@ -60,6 +73,7 @@ POSITIVE = {
     "mu_step": ("ratio",),
     "noise": ("tau_s",),
     "load_ripple": ("harmonic",),
+    "sidewall": ("deflection_width", "alpha_width_deg"),
 }
 NON_NEGATIVE = {
     "heating": ("k_surface_K_per_m", "k_bulk_K_per_m"),
@@ -68,6 +82,13 @@ NON_NEGATIVE = {
     "wear": ("loss_per_km", "abrasion_per_K"),
     "noise": ("scale", "colour"),
     "load_ripple": ("amplitude",),
+    "sidewall": (
+        "deflection_on",
+        "alpha_on_deg",
+        "alpha_per_deflection_deg",
+        "alpha_min_deg",
+        "depth",
+    ),
 }
 DIAGNOSIS_WORD = {
     "heating": "temperature",
@@ -80,6 +101,7 @@ DIAGNOSIS_WORD = {
     "speed_friction": "speed",
     "wear": "drift",
     "mu_step": "drift",
+    "sidewall": "sidewall_contact",
 }
 DEFAULT_ON = ("noise",)
 
@@ -197,6 +219,34 @@ def savkoor_factor(Vs: np.ndarray, mu0_ratio: float, Vm_mps: float, h: float) ->
 def sliding_speed(Vx: np.ndarray, kappa: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     """|Vs| ~ |Vx| sqrt(kappa^2 + tan^2 alpha) [m/s]."""
     return np.abs(Vx) * np.hypot(kappa, np.tan(alpha))
+
+
+def relative_deflection(Fz: F64, p_gauge: F64, params: Mapping[str, float]) -> F64:
+    """Tyre deflection over the nominal one: Fz / Cz(p) against FNOMIN / Cz(NOMPRES), with the
+    MF 6.1 vertical stiffness Cz = VERTICAL_STIFFNESS (1 + PFZ1 dpi) (floor 10 %)."""
+    p0 = float(params.get("NOMPRES") or 2.0e5)
+    dpi = (np.asarray(p_gauge, dtype=np.float64) - p0) / p0
+    stiffness = np.maximum(1.0 + float(params.get("PFZ1", 0.0)) * dpi, 0.1)
+    return np.asarray(Fz, dtype=np.float64) / float(params["FNOMIN"]) / stiffness
+
+
+def sidewall_factor(
+    Fz: F64, p_gauge: F64, alpha: F64, params: Mapping[str, float], sw: Mapping[str, float]
+) -> F64:
+    """Share of Fy (and Mz) left when the sidewall touches the road: a smoothstep gate in the
+    relative deflection, a contact slip angle that falls as the deflection grows, and a loss
+    that builds up exponentially beyond it (up to ``depth``)."""
+    rho = relative_deflection(Fz, p_gauge, params)
+    x = np.clip((rho - sw["deflection_on"]) / (2.0 * sw["deflection_width"]) + 0.5, 0.0, 1.0)
+    gate = x * x * (3.0 - 2.0 * x)
+    a_on = np.maximum(
+        sw["alpha_on_deg"] - sw["alpha_per_deflection_deg"] * (rho - sw["deflection_on"]),
+        sw["alpha_min_deg"],
+    )
+    over = np.maximum(np.degrees(np.abs(alpha)) - a_on, 0.0)
+    loss = gate * sw["depth"] * (1.0 - np.exp(-over / sw["alpha_width_deg"]))
+    left: F64 = np.maximum(1.0 - loss, 0.0)
+    return left
 
 
 # ------------------------------------------------------------------ sensor noise

@@ -18,6 +18,17 @@ Programmes
     Smaller focused sessions (2-4 min).
 ``transient``
     Slip-angle sines at 0.25-4 Hz and step steers at two speeds (relaxation vs delay).
+``safe_envelope``
+    What a real Flat-Trac tests safely (loads 40-120 % FNOMIN, pressures 85-115 % NOMPRES, at
+    the ambient), the tyre heating as it runs: ``heating`` on (with SEED_TYRE_HEATING) and the
+    temperature channel left out unless the caller says otherwise. Reference, reversed and slow
+    sweeps and a cooling pause (about 9 min).
+``special_conditions``
+    What the rig cannot test, run isothermally like an FE model: the rig's conditions at the
+    ambient (the overlap), then the seed paper's 60/140/220 kPa at 120 % load, 120/140/160 %
+    load at 60 kPa and -10/40/80 degC at 220 kPa and 120 %; the temperature channel is the set
+    temperature; ``sidewall`` on unless switched off, and the temperature law of ``heating``
+    (SEED_TYRE_HEATING unless given) acts at the set temperature.
 ``ttc_cornering``
     An FSAE Tire Test Consortium style cornering run: continuous constant-rate slip-angle
     sweeps 0 -> +A -> -A -> 0 over load blocks (1/0.5/1.5/0.75 FNOMIN) inside inclination
@@ -40,7 +51,9 @@ sweep amplitude, default 10), ``kappa_max`` (longitudinal amplitude, default 0.1
 unless the pressure channel is omitted), ``laps`` (track, default 2), ``soak_s`` and
 ``soak_deg`` (flat_trac's heat soak: duration, default 25 s, and slip angle, default 5 deg),
 ``stop_s`` (flat_trac, lateral_sweeps: a belt stop of this many seconds between two runs,
-after the load and pressure blocks; default 0, none).
+after the load and pressure blocks; default 0, none); ``p_low_kPa``, ``p_mid_kPa``,
+``p_high_kPa``, ``cold_C``, ``warm_C``, ``hot_C`` (special_conditions: the seed paper's
+60, 140, 220 kPa and -10, 40, 80 degC by default).
 """
 
 from __future__ import annotations
@@ -96,6 +109,7 @@ class WheelProgramme:
     Vx: np.ndarray  # m/s
     p_set: np.ndarray  # gauge Pa: the pressure the rig regulates to / the tyre was set to
     segments: list[Segment] = field(default_factory=list)
+    T_set: np.ndarray | None = None  # degC: the set tyre temperature of an isothermal run
 
 
 @dataclass
@@ -106,6 +120,12 @@ class Programme:
     T_ambient: np.ndarray  # degC
     run: np.ndarray  # int run index per sample (a run = a block between re-set-ups)
     options: dict[str, Any] = field(default_factory=dict)
+    # An isothermal programme (a simulation, like an FE model): the tyre is held at each
+    # wheel's T_set, the temperature channel is that set temperature, nothing heats.
+    isothermal: bool = False
+    # effects switched on (with these parameters) unless the caller switches them off
+    default_effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    default_omit: tuple[str, ...] = ()  # channels left out unless the caller says otherwise
 
     @property
     def n(self) -> int:
@@ -148,11 +168,21 @@ class RigBuilder:
     ):
         self.tyre, self.fs, self.rate_scale, self.ambient = tyre, rate_hz, rate_scale, ambient_C
         self.cols: dict[str, list[np.ndarray]] = {
-            k: [] for k in ("kappa", "alpha", "gamma", "Fz", "Vx", "p")
+            k: [] for k in ("kappa", "alpha", "gamma", "Fz", "Vx", "p", "T")
         }
         self.run: list[np.ndarray] = []
         self.segments: list[Segment] = []
-        self.state = {"Fz": tyre.FNOMIN, "Vx": tyre.LONGVL, "p": tyre.NOMPRES, "gamma": 0.0}
+        self.state = {
+            "Fz": tyre.FNOMIN,
+            "Vx": tyre.LONGVL,
+            "p": tyre.NOMPRES,
+            "gamma": 0.0,
+            "T": ambient_C,  # the set tyre temperature (used by isothermal programmes only)
+        }
+        # what the programme function declares about itself (see ``Programme``)
+        self.isothermal = False
+        self.default_effects: dict[str, Mapping[str, float]] = {}
+        self.default_omit: tuple[str, ...] = ()
         self.n = 0
         self.alpha_hold = 0.0  # slip angle [rad] that set-up transitions keep (drive/brake)
         self.run_index = 0
@@ -169,6 +199,7 @@ class RigBuilder:
         Fz: F64 | None = None,
         Vx: F64 | None = None,
         p: F64 | None = None,
+        T: F64 | None = None,
         **info: Any,
     ) -> None:
         m = len(kappa)
@@ -182,6 +213,7 @@ class RigBuilder:
             "Fz": np.full(m, s["Fz"]) if Fz is None else Fz,
             "Vx": np.full(m, s["Vx"]) if Vx is None else Vx,
             "p": np.full(m, s["p"]) if p is None else p,
+            "T": np.full(m, s["T"]) if T is None else T,
         }
         for k, v in full.items():
             self.cols[k].append(np.asarray(v, dtype=float))
@@ -199,11 +231,13 @@ class RigBuilder:
         Vx: float | None = None,
         p: float | None = None,
         gamma: float | None = None,
+        T: float | None = None,
         duration_s: float = 1.5,
     ) -> None:
-        """Change load/speed/pressure/camber along a zero-slip transition (rig re-set-up)."""
+        """Change load/speed/pressure/camber (and the set temperature of an isothermal
+        programme) along a zero-slip transition (rig re-set-up)."""
         new = dict(self.state)
-        for k, v in (("Fz", Fz), ("Vx", Vx), ("p", p), ("gamma", gamma)):
+        for k, v in (("Fz", Fz), ("Vx", Vx), ("p", p), ("gamma", gamma), ("T", T)):
             if v is not None:
                 new[k] = float(v)
         if new == self.state:
@@ -223,6 +257,7 @@ class RigBuilder:
             Fz=ramps["Fz"],
             Vx=ramps["Vx"],
             p=ramps["p"],
+            T=ramps["T"],
         )
         self.state = new
 
@@ -252,6 +287,7 @@ class RigBuilder:
             "Vx_mps": s["Vx"],
             "p_Pa": s["p"],
             "gamma_deg": s["gamma"] / DEG,
+            **({"T_set_C": s["T"]} if self.isothermal else {}),
             **extra,
         }
 
@@ -410,6 +446,7 @@ class RigBuilder:
             cat["Vx"],
             cat["p"],
             self.segments,
+            cat["T"] if self.isothermal else None,
         )
         return wp, np.concatenate(self.run)
 
@@ -583,6 +620,74 @@ def _transient(b: RigBuilder, opt: dict[str, Any]) -> None:
         b.pause(2.0)
 
 
+def _sweep_pair(b: RigBuilder, A: float, kmax: float, label: str) -> None:
+    """A lateral and a longitudinal sweep at the present conditions, with pauses."""
+    b.lateral_sweep(A, label=f"lateral {label}")
+    b.pause(2.0)
+    b.longitudinal_sweep(kmax, label=f"longitudinal {label}")
+    b.pause(2.0)
+
+
+def _safe_envelope(b: RigBuilder, opt: dict[str, Any]) -> None:
+    """What a real Flat-Trac tests safely: loads SAFE_LOADS x FNOMIN at SAFE_PRESSURES x
+    NOMPRES, at the lab's ambient, the tyre heating as it runs (no temperature channel by
+    default); reference sweeps, a reversed and a slow sweep and a cooling pause let the heating
+    be told from other drifts (PHYSICS.md). Slip ratio sweeps go to 1.5 x ``kappa_max``, past
+    the force peak at every load."""
+    b.default_effects, b.default_omit = {"heating": SEED_TYRE_HEATING}, ("temperature",)
+    ty, A, kmax = b.tyre, opt["amplitude_deg"], 1.5 * opt["kappa_max"]
+    b.warmup(30.0)
+    b.pause(3.0)
+    for rep in range(opt["repeats"]):
+        b.reference_sweep(label=f"reference {rep}a")
+        b.pause(3.0)
+        for fp in SAFE_PRESSURES if opt["vary_pressure"] else SAFE_PRESSURES[:1]:
+            b.set_state(p=fp * ty.NOMPRES, duration_s=3.0)
+            for f in SAFE_LOADS:
+                b.set_state(Fz=f * ty.FNOMIN)
+                _sweep_pair(b, A, kmax, f"p={fp:g}NOMPRES Fz={f:g}FNOMIN")
+        b.set_state(Fz=ty.FNOMIN, p=ty.NOMPRES, duration_s=3.0)
+        b.lateral_sweep(A, reverse=True, label="lateral reversed")
+        b.pause(2.0)
+        b.lateral_sweep(A, rate_deg_s=1.5, label="lateral rate=1.5deg/s")
+        b.reference_sweep(label=f"reference {rep}b (hot)")
+        b.pause(30.0, label="cooling pause")
+        b.reference_sweep(label=f"reference {rep}c (after pause)")
+        b.pause(2.0)
+
+
+def _special_conditions(b: RigBuilder, opt: dict[str, Any]) -> None:
+    """What the rig cannot test, run like an FE model: isothermal at set temperatures, with
+    sidewall contact in its physics (``Programme.isothermal``). The seed paper's conditions
+    (pressures ``p_low_kPa``/``p_mid_kPa``/``p_high_kPa`` at 120 % load; 120/140/160 % load at
+    ``p_low_kPa``; ``cold_C``/``warm_C``/``hot_C`` at ``p_high_kPa`` and 120 % load) and the
+    rig's own (SAFE_LOADS x SAFE_PRESSURES at the ambient) to compare the two where both
+    reach. Lateral sweeps go to 1.5 x ``amplitude_deg`` (past the sidewall contact), slip
+    ratio sweeps to 2 x ``kappa_max`` (past the force peak at every load)."""
+    b.isothermal = True
+    b.default_effects = {"heating": SEED_TYRE_HEATING, "sidewall": {}}
+    ty, A, kmax = b.tyre, 1.5 * opt["amplitude_deg"], 2.0 * opt["kappa_max"]
+    F, amb = ty.FNOMIN, float(opt["ambient_C"])
+    for _ in range(opt["repeats"]):
+        for fp in SAFE_PRESSURES:  # the rig's conditions: the overlap
+            b.set_state(p=fp * ty.NOMPRES, T=amb, duration_s=3.0)
+            for f in SAFE_LOADS:
+                b.set_state(Fz=f * F)
+                _sweep_pair(b, A, kmax, f"p={fp:g}NOMPRES Fz={f:g}FNOMIN T={amb:g}C")
+        b.set_state(Fz=SEED_LOAD * F)
+        for key in ("p_high_kPa", "p_mid_kPa", "p_low_kPa"):  # pressure at 120 % load
+            b.set_state(p=1e3 * float(opt[key]), duration_s=3.0)
+            _sweep_pair(b, A, kmax, f"p={opt[key]:g}kPa Fz={SEED_LOAD:g}FNOMIN")
+        for f in SEED_HIGH_LOADS[1:]:  # low pressure, high load
+            b.set_state(Fz=f * F)
+            _sweep_pair(b, A, kmax, f"p={opt['p_low_kPa']:g}kPa Fz={f:g}FNOMIN")
+        b.set_state(Fz=SEED_LOAD * F, p=1e3 * float(opt["p_high_kPa"]), duration_s=3.0)
+        for key in ("cold_C", "warm_C", "hot_C"):  # tyre temperature
+            b.set_state(T=float(opt[key]), duration_s=3.0)
+            _sweep_pair(b, A, kmax, f"T={opt[key]:g}C")
+        b.set_state(T=amb, duration_s=3.0)
+
+
 # Load, inclination and pressure blocks of the TTC-style runs (fractions of FNOMIN and
 # NOMPRES, deg), in the order the consortium's runs visit them (not monotone).
 TTC_LOADS = (1.0, 0.5, 1.5, 0.75)
@@ -643,6 +748,8 @@ _RIG: dict[str, Callable[[RigBuilder, dict[str, Any]], None]] = {
     "camber": _camber,
     "pressure": _pressure,
     "transient": _transient,
+    "safe_envelope": _safe_envelope,
+    "special_conditions": _special_conditions,
     "ttc_cornering": _ttc_cornering,
     "ttc_drive_brake": _ttc_drive_brake,
 }
@@ -660,7 +767,26 @@ _DEFAULTS = {
     "soak_s": 25.0,
     "soak_deg": 5.0,
     "stop_s": 0.0,
+    "p_low_kPa": 60.0,  # special_conditions: the seed paper's pressures [kPa gauge] ...
+    "p_mid_kPa": 140.0,
+    "p_high_kPa": 220.0,
+    "cold_C": -10.0,  # ... and tyre temperatures [degC]
+    "warm_C": 40.0,
+    "hot_C": 80.0,
 }
+# The rig's safe envelope (safe_envelope, and special_conditions' overlap block): loads as
+# fractions of FNOMIN, pressures of NOMPRES. The seed paper's special conditions: 120 % load
+# (SEED_LOAD) and 120/140/160 % at low pressure.
+SAFE_LOADS = (0.4, 0.7, 1.0, 1.2)
+SAFE_PRESSURES = (1.0, 0.85, 1.15)
+SEED_LOAD = 1.2
+SEED_HIGH_LOADS = (1.2, 1.4, 1.6)
+# The tyre of safe_envelope and special_conditions heats on the rig and is held at set
+# temperatures in the simulation by one law (the ``heating`` effect's parameters). The seed
+# paper's tyre: stiffer cold, and from -10 to 80 degC less stiff and less grip as it warms (its
+# grip optimum at or below -10 degC, a window wide enough for the range); about 8 % less grip
+# at a rig session's hottest tread than at 25 degC.
+SEED_TYRE_HEATING = {"T_opt_C": -10.0, "width_hot_K": 150.0, "width_cold_K": 70.0}
 
 
 def _options(
@@ -682,6 +808,12 @@ def _options(
         raise ValueError("programme options: soak_s must be in [1, 3600] s, soak_deg in (0, 20]")
     if not 0.0 <= float(opt["stop_s"]) <= 3600.0:
         raise ValueError("programme options: stop_s must be in [0, 3600] s")
+    for key in ("p_low_kPa", "p_mid_kPa", "p_high_kPa"):
+        if not 1.0 <= float(opt[key]) <= 1e4:
+            raise ValueError(f"programme options: {key} must be in [1, 10000] kPa")
+    for key in ("cold_C", "warm_C", "hot_C", "ambient_C"):
+        if not -60.0 <= float(opt[key]) <= 200.0:
+            raise ValueError(f"programme options: {key} must be in [-60, 200] degC")
     opt["rate_scale"] = float(opt["rate_scale"])
     return opt
 
@@ -708,4 +840,14 @@ def build_programme(
     b.state["Vx"] = b.speed = opt["speed"]
     _RIG[name](b, opt)
     wp, run = b.build(RIG_PREFIX)
-    return Programme(name, rate_hz, [wp], np.full(len(run), float(opt["ambient_C"])), run, opt)
+    return Programme(
+        name,
+        rate_hz,
+        [wp],
+        np.full(len(run), float(opt["ambient_C"])),
+        run,
+        opt,
+        b.isothermal,
+        b.default_effects,
+        b.default_omit,
+    )

@@ -13,9 +13,15 @@ Order of the physics per wheel (one programme sample = one ``slip`` message):
    similarity method (F = mu F_model(s x / mu)) and, with ``combined``, pure-slip forces
    combined by normalised total slip instead of the file's G functions; the thermal loop is
    iterated to a fixed point (power -> temperature -> forces);
-5. force-level effects: ``offset``, ``camber`` (extra thrust), ``delay`` (forces late);
+5. force-level effects: ``sidewall`` (contact at low pressure and high load), ``offset``,
+   ``camber`` (extra thrust), ``delay`` (forces late);
 6. sensors: noise on every recorded channel; temperature = tread surface seen by an IR
    sensor (lag 0.3 s); channels in ``omit`` are left out (None).
+
+An isothermal programme (``special_conditions``: a simulation, like an FE model) holds the tyre
+at its set temperature instead of step 3's heating: the ``heating`` effect's temperature law
+(grip window, stiffness) acts at the set temperature, nothing heats, the pressure is the set
+one, and the temperature and pressure channels are those set values.
 """
 
 from __future__ import annotations
@@ -191,6 +197,42 @@ def _static_friction(
     return mu, step_at
 
 
+def _isothermal(
+    model: TireModel,
+    wp: WheelProgramme,
+    Fz: F64,
+    kappa: F64,
+    alpha: F64,
+    mu_static: F64,
+    eff: Effects,
+) -> dict[str, Any]:
+    """Forces of a tyre held at its set temperature: the temperature law of ``heating`` at
+    T_set, no frictional heating, the set pressure (no gas law)."""
+    assert wp.T_set is not None
+    T = wp.T_set
+    mu, stiff = mu_static.copy(), np.ones(len(T))
+    if "heating" in eff:
+        hp = HeatingParams.from_dict(eff["heating"])
+        mu *= grip_factor(T, T, hp)
+        stiff = stiffness_factor(T, hp)
+    T_model = T if "model_temperature" in eff else None
+    forces = tyre_forces(
+        model, Fz, kappa, alpha, wp.gamma, wp.Vx, wp.p_set, T_model, mu, stiff,
+        eff.get("combined"),
+    )  # fmt: skip
+    return {
+        "forces": forces,
+        "T_surface": T,
+        "T_bulk": T,
+        "T_gas": T,
+        "p_true": wp.p_set.copy(),
+        "mu_factor": mu,
+        "stiffness_factor": stiff,
+        "P_fric": frictional_power(forces["Fx"], forces["Fy"], wp.Vx, kappa, alpha),
+        "iterations": 1,
+    }
+
+
 def _thermal_fixed_point(
     model: TireModel,
     prog: Programme,
@@ -267,14 +309,20 @@ def _wear_factor(
 def _force_effects(
     forces: Mapping[str, F64],
     Fz: F64,
+    p: F64,
     gamma: F64,
     alpha: F64,
     t_rel: npt.NDArray[np.floating[Any]],
     eff: Effects,
+    params: Mapping[str, float],
 ) -> dict[str, F64]:
-    """What the load cell reports: the hub forces with ``offset`` and ``camber`` added,
-    ``delay``-ed against the slip channel."""
+    """What the load cell reports: the hub forces with ``sidewall`` contact (at the true load
+    and pressure ``p``), ``offset`` and ``camber`` added, ``delay``-ed against the slip
+    channel."""
     Fy_extra, Fx_extra, Mz_extra = np.zeros_like(Fz), np.zeros_like(Fz), np.zeros_like(Fz)
+    if "sidewall" in eff:
+        left = fx.sidewall_factor(Fz, p, alpha, params, eff["sidewall"])
+        forces = {**forces, "Fy": forces["Fy"] * left, "Mz": forces["Mz"] * left}
     if "offset" in eff:
         of = eff["offset"]
         Fy_extra += of["fy_per_Fz"] * Fz + of["fy_N"]
@@ -314,6 +362,7 @@ def _sensors(
     T_sensor = fx.first_order_in_distance(
         hid["T_surface"], np.ones(n), np.full(n, IR_SENSOR_TAU_S), dt
     )  # in time: V = 1
+    set_values = {"T": wp.T_set, "p": hid["p_true"]} if wp.T_set is not None else {}
     load = Fz if eff.get("load_ripple", {}).get("recorded", 1.0) else wp.Fz.copy()
     rec = {
         "kappa": wp.kappa,
@@ -332,7 +381,7 @@ def _sensors(
             k: v + fx.coloured_noise(rng, n, sds[k] * nz["scale"], nz["colour"], nz["tau_s"], dt)
             for k, v in rec.items()
         }
-    return rec
+    return {**rec, **set_values}  # an isothermal run's set temperature and pressure are exact
 
 
 def _simulate_wheel(
@@ -351,8 +400,13 @@ def _simulate_wheel(
     Fz = _true_load(wp.Fz, wp.Vx, tyre, eff, rng, dt)
     kappa, alpha = _contact_slips(wp, Fz, tyre.FNOMIN, eff, dt)
     mu_static, step_at = _static_friction(prog, tyre, wp.Vx, kappa, alpha, eff)
-    hid = _thermal_fixed_point(model, prog, wp, tyre, Fz, kappa, alpha, mu_static, eff)
-    meas = _force_effects(hid["forces"], Fz, wp.gamma, alpha, t_rel, eff)
+    if prog.isothermal:
+        hid = _isothermal(model, wp, Fz, kappa, alpha, mu_static, eff)
+    else:
+        hid = _thermal_fixed_point(model, prog, wp, tyre, Fz, kappa, alpha, mu_static, eff)
+    meas = _force_effects(
+        hid["forces"], Fz, hid["p_true"], wp.gamma, alpha, t_rel, eff, model.params
+    )
     rec = _sensors(wp, Fz, hid, meas, tyre, eff, rng, dt)
     moments = {k: None if "moments" in omit else rec[k] for k in ("Mx", "My", "Mz")}
     t_ns = EPOCH_NS + np.round(np.arange(n) * (1e9 / prog.rate_hz)).astype(np.int64)
@@ -460,7 +514,7 @@ def simulate_session(
     programme: str,
     *,
     effects: EffectsSpec = None,
-    omit: Sequence[str] = (),
+    omit: Sequence[str] | None = None,
     seed: int = 0,
     rate_hz: float = 100.0,
     programme_options: Mapping[str, Any] | None = None,
@@ -472,10 +526,12 @@ def simulate_session(
     ----------
     tir_or_model : TireModel, TirData or path of a .tir file (the base model the rig uses).
     programme : one of ``programmes.PROGRAMMES`` (flat_trac, lateral_sweeps, longitudinal_sweeps,
-        combined, camber, pressure, track).
+        combined, camber, pressure, transient, safe_envelope, special_conditions, track).
     effects : effect name -> True / False / dict of parameter overrides (``effects.DEFAULTS``),
-        or a list of names. ``noise`` is on unless given as False.
-    omit : recorded channels to leave out: temperature, pressure, velocity, moments.
+        or a list of names. ``noise`` and the programme's own defaults (``heating`` in
+        safe_envelope, ``sidewall`` in special_conditions) are on unless given as False.
+    omit : recorded channels to leave out: temperature, pressure, velocity, moments; None: the
+        programme's default (the temperature in safe_envelope, else nothing).
     seed : all randomness (noise, ripple phase) derives from it: same seed -> same series.
     rate_hz : sample rate of the slip channel (one sample per slip message).
     programme_options : see ``programmes`` (repeats, rate_scale, amplitude_deg, kappa_max,
@@ -489,14 +545,14 @@ def simulate_session(
     per-wheel segments and hidden-state summary/trace).
     """
     model = _as_model(tir_or_model)
-    omit_set = set(omit)
-    bad = omit_set - set(OMITTABLE)
+    bad = set(omit or ()) - set(OMITTABLE)
     if bad:
         raise ValueError(f"cannot omit {sorted(bad)}: omittable channels are {OMITTABLE}")
-    eff = fx.resolve_effects(effects)
     params = model.params
     tyre = TyreInfo.from_params(params)
-    prog = build_programme(programme, params, rate_hz, programme_options, omit_set)
+    prog = build_programme(programme, params, rate_hz, programme_options, set(omit or ()))
+    omit_set = set(prog.default_omit if omit is None else omit)
+    eff = fx.resolve_effects(_with_defaults(prog.default_effects, effects))
     for wp in prog.wheels:
         if getattr(wp, "needs_slip_inversion", False):  # track: force demands -> slips
             wp.alpha = invert_pure(model, wp.Fz, wp.alpha, wp.Vx, wp.p_set, lateral=True)
@@ -523,10 +579,28 @@ def simulate_session(
         "diagnosis_words": sorted({fx.DIAGNOSIS_WORD[k] for k in eff if k in fx.DIAGNOSIS_WORD}),
         "omitted": sorted(omit_set),
         "concealed": _concealed(eff, omit_set),
+        "isothermal": prog.isothermal,
         "ambient_C": float(prog.T_ambient[0]),
         "wheels": wheel_truth,
     }
     return wheels, truth
+
+
+def _with_defaults(
+    defaults: Mapping[str, Mapping[str, float]], effects: EffectsSpec
+) -> EffectsSpec:
+    """The caller's effects on top of a programme's default ones: a caller's False switches
+    one off, a caller's parameters replace the programme's."""
+    if not defaults:
+        return effects
+    if isinstance(effects, str):
+        effects = [effects]
+    given = dict(effects) if isinstance(effects, Mapping) else dict.fromkeys(effects or (), True)
+    merged: dict[str, bool | Mapping[str, float | str] | None] = dict(defaults)
+    for name, value in given.items():
+        if value is not True or name not in merged:
+            merged[name] = value
+    return merged
 
 
 def _concealed(eff: Effects, omit: set[str]) -> list[str]:

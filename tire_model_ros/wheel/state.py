@@ -27,6 +27,11 @@ Decisions (one place, documented in the node's docstring too):
   instead of the nominal one; the nodes step on the slip messages' header stamps, driven by the
   frictional power of the wheel's own previous output, except by a sample with an input out of
   range (it leaves no trace in them).
+- A .tir written by ``tire-model fit`` carries the envelope its fitted data covered
+  (``[FIT_ENVELOPE]``: load, pressure, temperature cells): forces are computed all the same
+  outside it (extrapolation), ``outside_envelope`` counts those answers (the inputs as
+  received, apart from the saturation at the file's ranges). An unreadable envelope is not
+  checked and ``last_error`` says why.
 
 Every slip message taken is counted in ``slip_in`` and either answered (``forces_out``) or
 counted under one of :data:`UNANSWERED`: ``slip_in == forces_out + sum(UNANSWERED)``.
@@ -40,6 +45,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from tire_model_ros.delivery import NODE, UNANSWERED, report_line
+from tire_model_ros.model.envelope import Envelope
 from tire_model_ros.model.states import EffectState
 from tire_model_ros.vocabulary import NODE_INPUTS, NS_PER_S
 from tire_model_ros.wheel.history import STATES, StampedHistory
@@ -83,15 +89,22 @@ class Nominal:
 
 @dataclass(frozen=True)
 class WheelModel:
-    """What a wheel computes with: the model, its nominal inputs and its input ranges."""
+    """What a wheel computes with: the model, its nominal inputs, its input ranges and the
+    envelope of its fitted data (None: none, or unreadable and ``envelope_error`` says why)."""
 
     model: TireModel
     nominal: Nominal
     ranges: InputRanges
+    envelope: Envelope | None = None
+    envelope_error: str = ""
 
     @classmethod
     def of(cls, model: TireModel) -> WheelModel:
-        return cls(model, Nominal.from_params(model.params), InputRanges.from_params(model.params))
+        nominal, ranges = Nominal.from_params(model.params), InputRanges.from_params(model.params)
+        try:
+            return cls(model, nominal, ranges, Envelope.from_tir(model.tir))
+        except ValueError as exc:
+            return cls(model, nominal, ranges, None, f"envelope not checked: {exc}")
 
 
 @dataclass(frozen=True)
@@ -145,6 +158,7 @@ class WheelState:
         self.slot = ""  # "" = shared model, else this wheel's key (own tir_file)
         self.inputs = {name: Input() for name in NODE_INPUTS}
         self.counts = dict.fromkeys(("slip_in", "forces_out", "no_contact", *UNANSWERED), 0)
+        self.counts["outside_envelope"] = 0
         self.out_of_range = dict.fromkeys(SAMPLE_INPUTS, 0)
         self.last_slip_ns: int | None = None
         self.last_error = ""
@@ -213,7 +227,15 @@ class WheelState:
             how = "saturated" if settings.limits else "limits off: not saturated"
             events.append(f"out_of_range: {', '.join(outside)} ({how})")
         out, problems = self._evaluate(wm, settings, stamp_ns, used, measured, not outside)
+        if out is not None and self._outside_envelope(wm, Fz, p, T):
+            self.counts["outside_envelope"] += 1
         return out, events + problems
+
+    def _outside_envelope(self, wm: WheelModel, Fz: float, p: float, T: float) -> bool:
+        """Whether the inputs leave the envelope of the model's fitted data."""
+        if wm.envelope_error:
+            self.last_error = wm.envelope_error
+        return wm.envelope is not None and not wm.envelope.contains_one(Fz, p, T)
 
     def _load(
         self, stamp_ns: int, wm: WheelModel, settings: Settings, events: list[str]
