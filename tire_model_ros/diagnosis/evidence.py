@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import binom
 
-from .effects.base import Array, Mask
+from .effects.base import Array, Index, Mask
 from .fitting import Fit, Score, errors
 from .prepare import Context
 
@@ -96,7 +96,7 @@ def region_sums(
     ctx: Context,
     cur: Sequence[Fit],
     new: Sequence[Fit],
-    tests: Sequence[Array],
+    tests: Sequence[Index],
     inside: Mask,
 ) -> Array:
     """Normalised held-out squared errors of ``cur`` and ``new`` inside and outside a region,
@@ -104,8 +104,8 @@ def region_sums(
     acc = np.zeros(4)
     for f0, f1, rows in zip(cur, new, tests, strict=True):
         e0, e1 = errors(f0.models, f0.x, ctx, rows), errors(f1.models, f1.x, ctx, rows)
-        z0 = sum((e0[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels)
-        z1 = sum((e1[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels)
+        z0 = np.asarray(sum((e0[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels), dtype=np.float64)
+        z1 = np.asarray(sum((e1[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels), dtype=np.float64)
         m = inside[rows]
         acc += (float(z0[m].sum()), float(z1[m].sum()), float(z0[~m].sum() - z1[~m].sum()), m.sum())
     return acc

@@ -7,15 +7,17 @@ are not independent, so every count is also given as an effective sample size.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..fit.sweeps import noise_sigma
-from .prepare import Context
+from .prepare import Array, Context
 
 PAUSE_KINDS = ("pause",)
 
 
-def residual_sigma(r: np.ndarray) -> float:
+def residual_sigma(r: Array) -> float:
     """White-noise level of a residual (:func:`noise_sigma`); plain std for very short ones."""
     r = r[np.isfinite(r)]
     if len(r) < 8:
@@ -23,7 +25,7 @@ def residual_sigma(r: np.ndarray) -> float:
     return noise_sigma(r)
 
 
-def n_effective(r: np.ndarray) -> float:
+def n_effective(r: Array) -> float:
     """Effective sample size n (1 - rho1) / (1 + rho1) from the lag-1 autocorrelation."""
     r = r[np.isfinite(r)] - np.nanmean(r)
     n = len(r)
@@ -34,25 +36,32 @@ def n_effective(r: np.ndarray) -> float:
     return n * (1.0 - rho) / (1.0 + rho)
 
 
-def _span(t: np.ndarray) -> str:
+def _span(t: Array) -> str:
     return f"t = {t[0]:.0f}-{t[-1]:.0f} s" if len(t) else "nowhere"
 
 
-def channel_summary(ctx: Context, resid: dict[str, np.ndarray], ch: str) -> dict:
+def channel_summary(ctx: Context, resid: dict[str, Array], ch: str) -> dict[str, Any]:
     """Numbers and words locating the residual ``resid[ch]`` of one channel."""
     slip_key = "alpha" if ch in ("Fy", "Mz") else "kappa"
     unit = "deg" if slip_key == "alpha" else ""
+    r_all: list[Array]
+    slip_all: list[Array]
+    seg_rms: list[float]
+    out_back: dict[str, list[float]]
+    e_seg: list[tuple[float, float]]
+    fz_all: list[Array]
+    v_all: list[Array]
     r_all, slip_all, seg_rms, seg_t, out_back = [], [], [], [], {"out": [], "back": []}
     e_seg, fz_all, v_all = [], [], []
     for w in [ctx.wheel]:
         if ch not in w.meas or ch not in resid:
             continue
         r = resid[ch]
-        slip = w.inputs[slip_key]
+        slip = w.x(slip_key)
         r_all.append(r)
         slip_all.append(np.abs(slip))
-        fz_all.append(w.inputs["Fz"])
-        v_all.append(w.inputs["V"])
+        fz_all.append(w.x("Fz"))
+        v_all.append(w.x("V"))
         sgn = np.sign(w.meas[ch])
         for seg in w.segments:
             idx = seg.index
@@ -75,10 +84,10 @@ def channel_summary(ctx: Context, resid: dict[str, np.ndarray], ch: str) -> dict
     slip = np.concatenate(slip_all)
     sigma = ctx.sigma[ch]
     rmse = float(np.sqrt(np.nanmean(r**2)))
-    info = {"rmse": rmse, "sigma": sigma, "n": len(r), "n_eff": n_effective(r)}
+    info: dict[str, Any] = {"rmse": rmse, "sigma": sigma, "n": len(r), "n_eff": n_effective(r)}
     # Time span of the sweeps whose residual is clearly above the noise.
-    seg_rms = np.asarray(seg_rms)
-    hot = np.flatnonzero(seg_rms > max(2.0 * sigma, 0.5 * np.max(seg_rms)))
+    rms = np.asarray(seg_rms)
+    hot = np.flatnonzero(rms > max(2.0 * sigma, 0.5 * np.max(rms)))
     if len(hot):
         info["time"] = (
             f"t = {seg_t[hot[0]][0]:.0f}-{seg_t[hot[-1]][1]:.0f} s "
@@ -114,7 +123,7 @@ def channel_summary(ctx: Context, resid: dict[str, np.ndarray], ch: str) -> dict
             info["energy_corr"] = float(np.corrcoef(e, m)[0, 1])
     zero = np.concatenate(
         [
-            (np.abs(w.inputs["kappa"]) < 5e-3) & (np.abs(w.inputs["alpha"]) < np.radians(0.3))
+            (np.abs(w.x("kappa")) < 5e-3) & (np.abs(w.x("alpha")) < np.radians(0.3))
             for w in [ctx.wheel]
             if ch in w.meas
         ]
@@ -124,7 +133,7 @@ def channel_summary(ctx: Context, resid: dict[str, np.ndarray], ch: str) -> dict
     return info
 
 
-def where_text(info: dict, ch: str, what: str = "residual") -> str:
+def where_text(info: dict[str, Any], ch: str, what: str = "residual") -> str:
     """A sentence saying where the mismatch (or an effect's part of the model) sits."""
     if not info:
         return f"{ch}: not recorded"

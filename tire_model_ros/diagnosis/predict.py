@@ -50,7 +50,7 @@ def model_inputs(
 def predict(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> dict[str, Array]:
     """Model forces and aligning moment at sample indices ``rows`` for parameters ``x``."""
     inp, s = model_inputs(models, x, ctx)
-    args = {k: None if inp[k] is None else inp[k][rows] for k in inp}
+    args: dict[str, Array | None] = {k: None if v is None else v[rows] for k, v in inp.items()}
     out = evaluate(ctx.model, coefficients(models, x, ctx), args, None if s is None else s[rows])
     for m, xm in zip(models, split_x(models, x), strict=True):
         m.output(xm, ctx, out, rows)
@@ -65,13 +65,14 @@ def evaluate(
     A friction scale ``s`` per sample acts by the similarity method (Pacejka 2012 §4.3.2):
     F = s F0(kappa / s, tan(alpha) / s), the slip stiffnesses kept.
     """
-    kappa, alpha = a["kappa"], a["alpha"]
+    kappa, alpha, Fz, gamma, V = a["kappa"], a["alpha"], a["Fz"], a["gamma"], a["V"]
     assert kappa is not None and alpha is not None
+    assert Fz is not None and gamma is not None and V is not None
     if s is not None:
         s = np.maximum(s, MIN_MU_SCALE)
         kappa, alpha = kappa / s, np.arctan(np.tan(alpha) / s)
     m = model.with_params(upd) if upd else model
-    o = m.evaluate(a["Fz"], kappa, alpha, a["gamma"], Vx=a["V"], p=a["p"], T=a["T"], full=False)
+    o = m.evaluate(Fz, kappa, alpha, gamma, Vx=V, p=a["p"], T=a["T"], full=False)
     out = {"Fx": np.asarray(o.Fx), "Fy": np.asarray(o.Fy), "Mz": np.asarray(o.Mz)}
     if s is not None:
         out = {ch: v * s for ch, v in out.items()}

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from tire_model_ros.atomic import replace_path
 
@@ -102,7 +103,7 @@ def _get(obj: Any, key: str, default: Any = None) -> Any:
     return getattr(obj, key, default)
 
 
-def _metric(fit: Mapping, block: str, channel: str, what: str) -> float:
+def _metric(fit: Mapping[str, Any], block: str, channel: str, what: str) -> float:
     """``fit[block][channel][what]`` or NaN when the diagnosis did not report it."""
     try:
         return float(fit[block][channel][what])
@@ -161,7 +162,7 @@ def effect_sentence(effect: Any) -> str:
     return "\n".join(lines)
 
 
-def fit_table(fit: Mapping) -> list[str]:
+def fit_table(fit: Mapping[str, Any]) -> list[str]:
     """The Markdown fit table: before/after on the fitted and on the held-out sweeps."""
     channels = [c for c in CHANNELS if c in (fit.get("baseline") or {})]
     channels += [c for c in (fit.get("baseline") or {}) if c not in channels]
@@ -312,12 +313,23 @@ def _plot_wheel(plt: Any, tmp: Path, diag: Any, prefix: str, series: Any) -> lis
     return made
 
 
-def _plot_residual_time(plt, tmp, slug, t, idx, held, series, preds, channels):
+def _plot_residual_time(
+    plt: Any,
+    tmp: Path,
+    slug: str,
+    t: npt.NDArray[np.float64],
+    idx: npt.NDArray[np.int64],
+    held: np.ndarray | None,
+    series: Any,
+    preds: Mapping[str, npt.NDArray[np.float64]],
+    channels: list[str],
+) -> tuple[str, str]:
     fig, axes = plt.subplots(
         len(channels), 1, figsize=(10, 2.6 * len(channels) + 0.6), sharex=True, squeeze=False
     )
     for ax, c in zip(axes[:, 0], channels, strict=True):
         meas = _measured(series, c)
+        assert meas is not None  # _plotted_channels: only measured channels
         _shade_heldout(ax, t, held)
         ax.plot(
             t[idx],
@@ -347,7 +359,15 @@ def _plot_residual_time(plt, tmp, slug, t, idx, held, series, preds, channels):
     )
 
 
-def _plot_residual_slip(plt, tmp, slug, idx, series, preds, channels):
+def _plot_residual_slip(
+    plt: Any,
+    tmp: Path,
+    slug: str,
+    idx: npt.NDArray[np.int64],
+    series: Any,
+    preds: Mapping[str, npt.NDArray[np.float64]],
+    channels: list[str],
+) -> tuple[str, str]:
     fig, axes = plt.subplots(
         1, len(channels), figsize=(4.2 * len(channels) + 0.8, 3.8), squeeze=False
     )
@@ -355,6 +375,7 @@ def _plot_residual_slip(plt, tmp, slug, idx, series, preds, channels):
         attr, label, scale = SLIP_OF_CHANNEL[c]
         x = np.asarray(getattr(series, attr), dtype=float)[idx] * scale
         meas = _measured(series, c)
+        assert meas is not None  # _plotted_channels: only measured channels
         ax.scatter(
             x,
             (meas - preds[f"baseline_{c}"])[idx],
@@ -384,7 +405,13 @@ def _plot_residual_slip(plt, tmp, slug, idx, series, preds, channels):
     )
 
 
-def _worst_sweep(diag, prefix, series, preds, channel) -> np.ndarray:
+def _worst_sweep(
+    diag: Any,
+    prefix: str,
+    series: Any,
+    preds: Mapping[str, npt.NDArray[np.float64]],
+    channel: str,
+) -> np.ndarray:
     """Indices of the sweep the given model fits worst, preferring held-out sweeps.
 
     The whole-session scatter shows the shape; a single sweep drawn as lines shows the size of
@@ -399,11 +426,23 @@ def _worst_sweep(diag, prefix, series, preds, channel) -> np.ndarray:
     if held is not None and len(held) == n:
         held_sweeps = [s for s in sweeps if np.mean(np.asarray(held)[s]) > 0.5]
         sweeps = held_sweeps or sweeps
-    r = _measured(series, channel) - preds[f"baseline_{channel}"]
+    meas = _measured(series, channel)
+    assert meas is not None  # _plotted_channels: only measured channels
+    r = meas - preds[f"baseline_{channel}"]
     return max(sweeps, key=lambda s: float(np.sqrt(np.mean(r[s] ** 2))))
 
 
-def _plot_fit(plt, tmp, slug, idx, series, preds, channels, diag=None, prefix=""):
+def _plot_fit(
+    plt: Any,
+    tmp: Path,
+    slug: str,
+    idx: npt.NDArray[np.int64],
+    series: Any,
+    preds: Mapping[str, npt.NDArray[np.float64]],
+    channels: list[str],
+    diag: Any = None,
+    prefix: str = "",
+) -> tuple[str, str]:
     fig, axes = plt.subplots(
         2, len(channels), figsize=(4.2 * len(channels) + 0.8, 7.4), squeeze=False
     )
@@ -412,6 +451,7 @@ def _plot_fit(plt, tmp, slug, idx, series, preds, channels, diag=None, prefix=""
         attr, label, scale = SLIP_OF_CHANNEL[c]
         slip = np.asarray(getattr(series, attr), dtype=float) * scale
         meas = _measured(series, c)
+        assert meas is not None  # _plotted_channels: only measured channels
         ax = axes[0, col]
         ax.scatter(
             slip[idx], meas[idx], s=3, color="0.35", alpha=0.5, label="measured", rasterized=True
@@ -458,7 +498,15 @@ def _plot_fit(plt, tmp, slug, idx, series, preds, channels, diag=None, prefix=""
     )
 
 
-def _plot_inferred(plt, tmp, slug, t, idx, series, inferred):
+def _plot_inferred(
+    plt: Any,
+    tmp: Path,
+    slug: str,
+    t: npt.NDArray[np.float64],
+    idx: npt.NDArray[np.int64],
+    series: Any,
+    inferred: dict[str, npt.NDArray[np.float64]],
+) -> tuple[str, str]:
     fig, axes = plt.subplots(
         len(inferred), 1, figsize=(10, 2.6 * len(inferred) + 0.6), sharex=True, squeeze=False
     )
@@ -483,7 +531,7 @@ def _plot_inferred(plt, tmp, slug, t, idx, series, inferred):
     return _save(plt, fig, tmp / f"inferred_{slug}.png", f"{what} over time")
 
 
-def _save(plt, fig, path: Path, caption: str) -> tuple[str, str]:
+def _save(plt: Any, fig: Any, path: Path, caption: str) -> tuple[str, str]:
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -506,7 +554,7 @@ def _check_target(out: Path, overwrite: bool) -> None:
 def write_report(
     diag: Any,
     wheels: Any,
-    out_dir: str | os.PathLike,
+    out_dir: str | os.PathLike[str],
     *,
     overwrite: bool = False,
     source: str | None = None,

@@ -133,6 +133,7 @@ def finish(prefix: str, sel: Selection) -> WheelDiagnosis:
     """Refit one wheel's chosen model on all its training sweeps and report on its final
     held-out fold."""
     trial = sel.final.wheels[prefix]
+    log: list[str]
     ctx, log = trial.ctx, []  # this wheel's own notes (the selection's log is the recording's)
     w, rows_ab = ctx.wheel, ctx.rows["ab"]
     models = trial.models

@@ -136,10 +136,12 @@ class Diagnosis:
             refs.append(ref)
             preds.append(pr)
         pooled = fit_json_pooled([_Scored(r, p) for r, p in zip(refs, preds, strict=True)])
-        out = {k: pooled[k] for k in ("heldout_baseline", "heldout_improved")}
+        scores = {k: pooled[k] for k in ("heldout_baseline", "heldout_improved")}
         ws = list(self.wheels.values())
-        out["heldout_floor"] = floor([w.ctx for w in ws], refs, [w.predictions for w in ws], preds)
-        return out
+        scores["heldout_floor"] = floor(
+            [w.ctx for w in ws], refs, [w.predictions for w in ws], preds
+        )
+        return scores
 
 
 @dataclass

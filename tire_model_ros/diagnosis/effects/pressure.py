@@ -91,7 +91,7 @@ class SealedGas(EffectModel):
         if self.by_T:
             T = w.inputs["T"]
             assert T is not None
-            return float(x[-1]) * (T - T[0])
+            return np.asarray(float(x[-1]) * (T - T[0]), dtype=np.float64)
         return float(x[-1]) * 1e-3 * w.P
 
     def pressure(self, x: Array, ctx: Context) -> Array:

@@ -40,7 +40,9 @@ class Offset(EffectModel):
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         v = self.values(x)
         if "ply_steer_rad" in v:
-            inp["alpha"] = inp["alpha"] + v["ply_steer_rad"]  # type: ignore[operator]
+            alpha = inp["alpha"]
+            assert alpha is not None
+            inp["alpha"] = alpha + v["ply_steer_rad"]
 
     def output(self, x: Array, ctx: Context, out: dict[str, Array], rows: Index) -> None:
         for k, v in self.values(x).items():
@@ -83,7 +85,7 @@ class Camber(_CoefficientRefit):
         return [cls(ctx)] if float(np.ptp(g)) > CAMBER_MIN_RAD else []
 
     def support(self, ctx: Context) -> Mask | None:
-        return np.abs(ctx.wheel.x("gamma")) > CAMBER_MIN_RAD
+        return np.asarray(np.abs(ctx.wheel.x("gamma")) > CAMBER_MIN_RAD, dtype=np.bool_)
 
 
 class CombinedSlip(_CoefficientRefit):
@@ -124,4 +126,5 @@ class CombinedSlip(_CoefficientRefit):
 
 def _both(ctx: Context) -> Mask:
     w = ctx.wheel
-    return (np.abs(w.x("kappa")) >= ACTIVE_KAPPA) & (np.abs(w.x("alpha")) >= ACTIVE_ALPHA)
+    both = (np.abs(w.x("kappa")) >= ACTIVE_KAPPA) & (np.abs(w.x("alpha")) >= ACTIVE_ALPHA)
+    return np.asarray(both, dtype=np.bool_)

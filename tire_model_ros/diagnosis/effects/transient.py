@@ -31,8 +31,11 @@ def _shapes(ctx: Context) -> dict[str, Array]:
     o = m.evaluate(Fz, 0.0, 0.0, 0.0)
     out: dict[str, Array] = {}
     h = {"alpha": 1e-3, "kappa": 1e-3}
-    for key, K, K0, ch in (("alpha", o.Kya, ref.Kya, "Fy"), ("kappa", o.Kxk, ref.Kxk, "Fx")):
-        K, K0 = np.abs(np.asarray(K)), abs(float(np.asarray(K0)[0]))
+    for key, K_raw, K0_raw, ch in (
+        ("alpha", o.Kya, ref.Kya, "Fy"),
+        ("kappa", o.Kxk, ref.Kxk, "Fx"),
+    ):
+        K, K0 = np.abs(np.asarray(K_raw)), abs(float(np.asarray(K0_raw)[0]))
         out[f"load_{key}"] = np.clip(np.nan_to_num(K / max(K0, 1e-9), nan=1.0), 0.05, 3.0)
         hi = {"alpha": a, "kappa": k} | {key: (a if key == "alpha" else k) + h[key]}
         lo = {"alpha": a, "kappa": k} | {key: (a if key == "alpha" else k) - h[key]}
