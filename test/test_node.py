@@ -183,7 +183,7 @@ class Wheel:
             stamps.append((m.header.stamp.sec, m.header.stamp.nanosec))
         return stamps
 
-    def results(self, stamps, timeout=15.0) -> np.ndarray:
+    def results(self, stamps, timeout=60.0) -> np.ndarray:
         """Forces (Fx, Fy, Fz, Mx, My, Mz) for the stamps, in order; fails if one is missing."""
 
         def by_stamp():
@@ -198,7 +198,7 @@ class Wheel:
             rows.append([w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z])
         return np.array(rows)
 
-    def settle(self, model, inputs, timeout=15.0, limits=True, send=True) -> None:
+    def settle(self, model, inputs, timeout=60.0, limits=True, send=True) -> None:
         """Send ``inputs`` and wait until the node computes with them (probe slips)."""
         if send:
             self.send_inputs(**inputs)
