@@ -349,26 +349,25 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
     if not new:
         return True, ""
     per_wheel = {n.ctx.wheel.prefix: n.models[-1].controls(n.ctx) for _, n, _ in new}
-    out = []
+    out, tested = [], 0
     for i, c in enumerate(next(iter(per_wheel.values()))):
         ctrl = Joint(
             {p: add(tr, per_wheel[p][i]) if p in per_wheel else tr for p, tr in cur.wheels.items()}
         )
-        apart = _apart(t, ctrl, cur, [p for p in per_wheel])
+        apart = _apart(t, ctrl, cur, list(per_wheel))
         rms = ctrl.score.rms
         if apart < ev.CONTROL_RESOLVES:
             out.append(f"{c.label} {rms:.3f} (the same forces, {apart:.2f} apart: no test)")
             continue
         out.append(f"{c.label} {rms:.3f} ({apart:.2f} apart)")
+        tested += 1
         if t.score.rms > rms * (1.0 - ev.MIN_CONTROL_MARGIN):
             return False, (f"not better than {c.label} ({t.score.rms:.3f} vs {rms:.3f}, "
                            f"{apart:.2f} apart)")  # fmt: skip
     if not out:
         return True, ""
-    return (
-        True,
-        f"beats its controls: {', '.join(out)} vs {t.score.rms:.3f} (held-out RMS, noise units)",
-    )
+    verdict = "beats its controls" if tested else "its controls cannot test it (none tested)"
+    return True, f"{verdict}: {', '.join(out)} vs {t.score.rms:.3f} (held-out RMS, noise units)"
 
 
 def _apart(t: Joint, ctrl: Joint, cur: Joint, prefixes: Sequence[str]) -> float:
