@@ -349,12 +349,13 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
     if not new:
         return True, ""
     per_wheel = {n.ctx.wheel.prefix: n.models[-1].controls(n.ctx) for _, n, _ in new}
+    done = max(_changed(t, cur, list(per_wheel)), 1e-12)  # what the effect changes
     out, tested = [], 0
     for i, c in enumerate(next(iter(per_wheel.values()))):
         ctrl = Joint(
             {p: add(tr, per_wheel[p][i]) if p in per_wheel else tr for p, tr in cur.wheels.items()}
         )
-        apart = _apart(t, ctrl, cur, list(per_wheel))
+        apart = _changed(t, ctrl, list(per_wheel)) / done
         rms = ctrl.score.rms
         if apart < ev.CONTROL_RESOLVES:
             out.append(f"{c.label} {rms:.3f} (the same forces, {apart:.2f} apart: no test)")
@@ -370,16 +371,16 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
     return True, f"{verdict}: {', '.join(out)} vs {t.score.rms:.3f} (held-out RMS, noise units)"
 
 
-def _apart(t: Joint, ctrl: Joint, cur: Joint, prefixes: Sequence[str]) -> float:
-    """How far apart the effect's and its control's held-out predictions are, as a share of
-    what the effect changes (both in noise units, every wheel and split pooled)."""
-    diff, done = [], []
+def _changed(t: Joint, other: Joint, prefixes: Sequence[str]) -> float:
+    """RMS of how far ``t``'s held-out predictions are from ``other``'s, in noise units (every
+    wheel in ``prefixes`` and both splits pooled): against the current model, what the effect
+    changes; against a control, how far apart the two predict."""
+    diff = []
     for p in prefixes:
-        a, b, c = t.wheels[p], ctrl.wheels[p], cur.wheels[p]
+        a, b = t.wheels[p], other.wheels[p]
         for i, (_, test) in enumerate(splits(a.ctx)):
             diff.append(_doing(a.fits[i], b.fits[i], a.ctx, test))
-            done.append(_doing(a.fits[i], c.fits[i], a.ctx, test))
-    return ev.rms(np.concatenate(diff)) / max(ev.rms(np.concatenate(done)), 1e-12)
+    return ev.rms(np.concatenate(diff))
 
 
 def _backward(
