@@ -468,7 +468,7 @@ def test_absurd_temperature_and_load_with_limits_on_and_off(client, hostile, mod
     t0 = client.node.get_clock().now().nanoseconds
     st = wait_for(lambda: status(box, "tire_h: /h", t0), 10, "a status after the hot tread")
     assert st.level == b"\x01" and "out_of_range.temperature +" in st.message, st.message
-    assert "(saturated)" in st.message
+    assert "(saturated" in st.message
     inp.settle(model, 1e12, 2.6e5, 500.0, 15.0)
     huge = inp.rows(inp.slips(SLIPS))
     assert np.all(huge[:, 2] == FZMAX)
@@ -483,7 +483,7 @@ def test_absurd_temperature_and_load_with_limits_on_and_off(client, hostile, mod
         assert np.all(plain[traction, 0] < 0.0)  # 500 degC flips Fx in the plain equations
         t1 = client.node.get_clock().now().nanoseconds
         st = wait_for(lambda: status(box, "tire_h: /h", t1), 10, "a status, limits off")
-        assert st.level == b"\x01" and "(limits off: not saturated)" in st.message, st.message
+        assert st.level == b"\x01" and "(limits off: not saturated" in st.message, st.message
     finally:
         assert client.set_parameters("/tire_h", {"limits": True})[0].successful
     inp.settle(model, 5000.0, 2.6e5, 40.0, 15.0)

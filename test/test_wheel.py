@@ -166,7 +166,31 @@ def test_every_slip_is_answered_or_counted(wm):
     assert (c["slip_malformed"], c["slip_inactive"], c["slip_rejected"]) == (1, 1, 1)
     assert (c["skipped_no_load"], c["no_contact"], c["load.malformed"]) == (1, 1, 1)
     assert c["load.rejected"] == c["pressure.rejected"] == c["temperature.rejected"] == 1
+    w.unpublished("publish failed: context invalid")  # SIGTERM under the callback
+    c = w.counters()
+    assert c["slip_in"] == c["forces_out"] + sum(c[k] for k in UNANSWERED) == 6
+    assert c["publish_failed"] == 1
     assert parse_reports("x\n" + final_line("/w", c) + "\n", NODE) == {"/w": c}
+
+
+def test_diagnostics_warn_while_the_last_slip_is_out_of_range(wm):
+    """A hot tread WARNs in the period it came and in every period after it until a slip
+    comes with its inputs in range, so a status never says "ok" over saturated outputs."""
+    from tire_model_ros.ros.diagnostics import level_and_message
+
+    w = WheelState("/w", "w")
+    w.set_input("load", 0, 4000.0)
+    w.set_input("temperature", 0, 500.0)
+    before = w.counters()
+    w.compute(0.1, 0.0, 0.0, S, wm, settings(timeout_s=10.0))
+    delta = {k: v - before[k] for k, v in w.counters().items()}
+    level, message, _, _ = level_and_message(delta, True, w.outside)
+    assert level == b"\x01" and message == "out_of_range.temperature +1 (saturated, still)"
+    level, message, _, _ = level_and_message({}, True, w.outside)  # no slip this period
+    assert level == b"\x01" and message == "out_of_range.temperature +0 (saturated, still)"
+    w.set_input("temperature", 2 * S, 40.0)
+    w.compute(0.1, 0.0, 0.0, 2 * S, wm, settings(timeout_s=10.0))
+    assert level_and_message({}, True, w.outside)[:2] == (b"\x00", "ok")
 
 
 def test_an_absurd_slip_leaves_the_hidden_states_untouched(wm):

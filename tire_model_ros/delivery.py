@@ -34,6 +34,7 @@ UNANSWERED = (
     "output_nonfinite",
     "model_errors",
     "slip_inactive",
+    "publish_failed",
 )
 
 

@@ -3,8 +3,9 @@
 Per wheel, per period (the counters' increase since the last report):
 
 - ERROR: slip messages went unanswered and none was answered.
-- WARN: slip messages unanswered (any reason of ``UNANSWERED``), inputs out of range
-  (saturated with the limits on, used as they are with them off), messages that could not be
+- WARN: slip messages unanswered (any reason of ``UNANSWERED``), inputs out of range in the
+  period or still at the last slip (saturated with the limits on, used as they are with them
+  off; ``out_of_range.temperature +0 (saturated, still)``), messages that could not be
   read or values rejected, inputs missing for a slip (stale, stamped after it, or a load never
   received), or an input topic subscribed again whose handover ended before every publisher
   was matched (``resubscribe_unmatched``; a lossless handover is counted, not a warning).
@@ -35,11 +36,15 @@ def _is_warning(key: str) -> bool:
 
 
 def level_and_message(
-    delta: Mapping[str, int], limits: bool
+    delta: Mapping[str, int], limits: bool, outside: tuple[str, ...] = ()
 ) -> tuple[bytes, str, list[str], list[str]]:
-    """(level, message, unanswered keys, warning keys) of one period's counter increases."""
+    """(level, message, unanswered keys, warning keys) of one period's counter increases and
+    the inputs still ``outside`` their range at the last slip (WARN while they stay there,
+    even in a period without slips)."""
     lost = [k for k in UNANSWERED if delta.get(k)]
     warn = [k for k, d in delta.items() if d and _is_warning(k)]
+    held = [f"out_of_range.{name}" for name in outside]
+    warn += [k for k in held if k not in warn]
     if lost and not delta.get("forces_out"):
         level = DiagnosticStatus.ERROR
     elif lost or warn:
@@ -48,7 +53,8 @@ def level_and_message(
         level = DiagnosticStatus.OK
     how = "saturated" if limits else "limits off: not saturated"
     parts = [
-        f"{k} +{delta[k]}" + (f" ({how})" if k.startswith("out_of_range.") else "")
+        f"{k} +{delta.get(k, 0)}"
+        + (f" ({how}{', still' if k in held else ''})" if k.startswith("out_of_range.") else "")
         for k in lost + warn
     ]
     return level, "; ".join(parts) if parts else "ok", lost, warn
@@ -63,7 +69,7 @@ def wheel_status(
     limits: bool,
 ) -> DiagnosticStatus:
     """The status of one wheel for one period (module docstring)."""
-    level, message, _, _ = level_and_message(delta, limits)
+    level, message, _, _ = level_and_message(delta, limits, w.outside)
     st = DiagnosticStatus(name=name, hardware_id=w.prefix, level=level, message=message)
     values = {"tir_file": tir_path, **{k: str(v) for k, v in counts.items()}}
     for inp in NODE_INPUTS:

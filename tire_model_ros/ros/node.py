@@ -70,6 +70,7 @@ would stall messages by 16-54 ms) and applies ``rt_priority`` and ``cpus`` to ev
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
@@ -85,6 +86,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
@@ -520,14 +522,17 @@ class TireModelCore(Node):
                 self._log_events(w, events)
             if res is None:
                 return
-            if end >= 0:
-                pub.publish(cdr_fast.wrench_like(data, end, res))
-                return
-            out = WrenchStamped()
-            out.header = msg.header  # same stamp (and frame) as the slip sample
-            f, t = out.wrench.force, out.wrench.torque
-            f.x, f.y, f.z, t.x, t.y, t.z = res
-            pub.publish(out)
+            try:
+                if end >= 0:
+                    pub.publish(cdr_fast.wrench_like(data, end, res))
+                    return
+                out = WrenchStamped()
+                out.header = msg.header  # same stamp (and frame) as the slip sample
+                f, t = out.wrench.force, out.wrench.torque
+                f.x, f.y, f.z, t.x, t.y, t.z = res
+                pub.publish(out)
+            except _rclpy.RCLError as exc:  # SIGTERM shut the context down under this callback
+                w.unpublished(f"publish failed: {exc}")
 
         return on_slip
 
@@ -576,7 +581,8 @@ class TireModelCore(Node):
                 f"{self.get_name()}: {w.prefix}", w, delta, counts, self.slots[w.slot].path,
                 self.settings.limits,
             ))  # fmt: skip
-        self._diag_pub.publish(arr)
+        with contextlib.suppress(_rclpy.RCLError):  # the context shut down: no one to tell
+            self._diag_pub.publish(arr)
 
     def _model_status(self) -> DiagnosticStatus:
         st = DiagnosticStatus(

@@ -22,6 +22,8 @@ Decisions (one place, documented in the node's docstring too):
 - Every input (the slips too) outside the file's range counts in ``out_of_range.<input>``;
   with ``limits`` it is saturated first (:mod:`.ranges`).
 - Model output not finite, or the model raising: nothing published, counted.
+- Forces the publisher refuses (the context shut down under the callback at SIGTERM):
+  ``publish_failed``, not ``forces_out``.
 - With an effects file (``effects``: the diagnosis' hidden states, :mod:`..model.states`), a
   temperature or pressure without a fresh value takes the hidden tread or gas node's value
   instead of the nominal one; the nodes step on the slip messages' header stamps, driven by the
@@ -160,6 +162,7 @@ class WheelState:
         self.counts = dict.fromkeys(("slip_in", "forces_out", "no_contact", *UNANSWERED), 0)
         self.counts["outside_envelope"] = 0
         self.out_of_range = dict.fromkeys(SAMPLE_INPUTS, 0)
+        self.outside: tuple[str, ...] = ()  # inputs out of range at the last slip
         self.last_slip_ns: int | None = None
         self.last_error = ""
         self.effects: EffectState | None = None  # hidden states of an effects file
@@ -187,6 +190,13 @@ class WheelState:
         """Count a slip message that arrived while the (managed) node was not active."""
         self.counts["slip_in"] += 1
         self.counts["slip_inactive"] += 1
+
+    def unpublished(self, reason: str) -> None:
+        """Count forces computed but refused by the publisher (the context shut down under
+        the callback at SIGTERM): an answer not delivered, not an answer."""
+        self.counts["forces_out"] -= 1
+        self.counts["publish_failed"] += 1
+        self.last_error = reason
 
     def _value(self, name: str, stamp_ns: int, timeout_ns: int) -> tuple[float | None, str]:
         ch = self.inputs[name]
@@ -221,6 +231,7 @@ class WheelState:
             return self._no_contact(stamp_ns), events
         p, T, Vx, measured = self._optional(stamp_ns, wm, settings, events)
         used, outside = wm.ranges.saturate((Fz, kappa, alpha, gamma, p, T, Vx), settings.limits)
+        self.outside = outside
         for name in outside:
             self.out_of_range[name] += 1
         if outside:
