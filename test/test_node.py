@@ -236,6 +236,11 @@ def random_slips(seed: int, n: int = 40) -> list[tuple[float, float, float]]:
 
 
 def start_node(args, client) -> NodeProcess:
+    """The node, answering each slip on arrival (``align.wait`` 0): these tests send inputs
+    once, then slips stamped after them, which the default would hold for the inputs still
+    arriving until they stop (up to 1 s each time); holding is tested in test_wheel.py and
+    test_node_hostile.py."""
+    args = [*args, "-p", "align.wait:=0.0"]
     return NodeProcess([*node_command(), "--ros-args", *args], ros_env(client.domain_id))
 
 
@@ -416,12 +421,18 @@ def test_changes_under_streaming_drop_nothing_mix_nothing(client, node1):
 def test_coefficient_descriptors(client, node1):
     from rcl_interfaces.srv import DescribeParameters
 
-    req = DescribeParameters.Request(names=["FNOMIN", "PDY1", "timeout.load"])
+    req = DescribeParameters.Request(names=["FNOMIN", "PDY1", "timeout.load", "align.wait"])
     d = client.call(DescribeParameters, f"{N1}/describe_parameters", req).descriptors
     assert "load" in d[0].description.lower() and d[0].floating_point_range[0].from_value == 0.0
     rng = d[1].floating_point_range[0]  # |mu_y| <= 10 (every coefficient has a range)
     assert d[1].description and (rng.from_value, rng.to_value) == (-10.0, 10.0)
     assert d[2].floating_point_range[0].from_value == 0.0
+    rng = d[3].floating_point_range[0]
+    assert "ROS clock" in d[3].description and (rng.from_value, rng.to_value) == (0.0, 60.0)
+    assert client.set_parameters(N1, {"align.wait": 0.25})[0].successful  # live
+    assert not client.set_parameters(N1, {"align.wait": 61.0})[0].successful
+    assert client.get_parameters(N1, ["align.wait"]) == {"align.wait": 0.25}
+    assert client.set_parameters(N1, {"align.wait": 0.0})[0].successful
 
 
 def test_bad_values_rejected_outputs_unchanged(client, node1):

@@ -8,12 +8,16 @@ Per wheel, per period (the counters' increase since the last report):
   off; ``out_of_range.temperature +0 (saturated, still)``), messages that could not be
   read or values rejected, inputs missing for a slip (stale, stamped after it, or a load never
   received), or an input topic subscribed again whose handover ended before every publisher
-  was matched (``resubscribe_unmatched``; a lossless handover is counted, not a warning).
+  was matched (``resubscribe_unmatched``; a lossless handover is counted, not a warning), or
+  slips held for their inputs released without them: the wait bound passed, or an input it
+  waited for stopped (``released_by_wait``), or the queue was full (``released_by_overflow``).
+  Holding a slip until its inputs catch up (``held``, ``released_caught_up``) is normal.
 - OK, message "ok": none of these: every output is the model on in-range inputs.
 
 The message lists what happened with its count (``out_of_range.temperature +12 (saturated)``);
-the values carry every cumulative counter, each input's newest value and its age in stamp time
-(the last slip's stamp minus the value's), and the effects' hidden states.
+the values carry every cumulative counter, the slips held now (``pending``), each input's
+newest value and its age in stamp time (the last slip's stamp minus the value's), and the
+effects' hidden states.
 """
 
 from __future__ import annotations
@@ -26,13 +30,17 @@ from tire_model_ros.delivery import UNANSWERED
 from tire_model_ros.vocabulary import NODE_INPUTS
 from tire_model_ros.wheel.state import WheelState
 
+#: Counters whose increase is a warning by itself: a handover that may have lost messages,
+#: slips computed before their inputs caught up (:mod:`tire_model_ros.wheel.hold`).
+_WARNINGS = ("resubscribe_unmatched", "released_by_wait", "released_by_overflow")
+
 
 def _is_warning(key: str) -> bool:
     if key.startswith("out_of_range.") or key.endswith((".malformed", ".rejected")):
         return True
     if key.startswith("fallback."):
         return not key.endswith(".never") or key == "fallback.load.never"
-    return key == "resubscribe_unmatched"  # a handover that may have lost messages
+    return key in _WARNINGS
 
 
 def level_and_message(
@@ -72,6 +80,7 @@ def wheel_status(
     level, message, _, _ = level_and_message(delta, limits, w.outside)
     st = DiagnosticStatus(name=name, hardware_id=w.prefix, level=level, message=message)
     values = {"tir_file": tir_path, **{k: str(v) for k, v in counts.items()}}
+    values["pending"] = str(w.hold.pending)  # a gauge, not a counter: no delta
     for inp in NODE_INPUTS:
         latest = w.inputs[inp].history.latest()
         age = w.input_age_s(inp)

@@ -10,7 +10,8 @@ the same parameters and topics (:mod:`.node`). Transitions (``ros2 lifecycle set
   parameters, creates the topics, ``~/reload`` and /diagnostics. A file that cannot be loaded
   fails the transition (the node stays unconfigured and says why).
 - activate: slip messages are answered from now on.
-- deactivate: slip messages are no longer answered; each one that arrives is counted in
+- deactivate: the slips held for their inputs (``align.wait``) are answered with what there
+  is; slip messages are no longer answered, each one that arrives is counted in
   ``slip_inactive`` (inputs are still taken, so the next activation starts with fresh ones).
 - cleanup: undoes configure (topics, coefficient parameters and models gone).
 - shutdown (from any state): undoes what is set up, and the process exits with status 0.
@@ -52,6 +53,7 @@ class TireModelLifecycleNode(TireModelCore, LifecycleNode):
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.flush_held()  # the slips waiting for their inputs are answered now
         self.active = False
         self.get_logger().info("inactive: slip messages are counted, not answered")
         return super().on_deactivate(state)

@@ -55,6 +55,11 @@ def declare_node_params(node: Node) -> None:
         d(f"timeout.{name}", value, descriptor(
             f"{name} stamped more than this [s] before the slip -> nominal value; 0 = never stale",
             floating_point_range=[nonneg]))  # fmt: skip
+    d("align.wait", pn.DEFAULT_ALIGN_WAIT, descriptor(
+        "hold a slip until every input still arriving has a value stamped at or after it, at "
+        "most this long [s] on the ROS clock; 0 = answer each slip on arrival",
+        floating_point_range=[FloatingPointRange(from_value=0.0, to_value=pn.MAX_ALIGN_WAIT,
+                                                 step=0.0)]))  # fmt: skip
     d("diagnostics_period", 1.0,
       descriptor("/diagnostics period [s] on the ROS clock", read_only=True))  # fmt: skip
     d("qos_depth", 100, descriptor("depth of the keep-last topic queues", read_only=True))

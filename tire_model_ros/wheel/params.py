@@ -35,6 +35,7 @@ GLOBAL_PARAMS = (
     "ambient_pressure",
     "missing_load",
     "timeout",
+    "align",
     "diagnostics_period",
     "qos_depth",
     "input_reliability",
@@ -48,6 +49,10 @@ GLOBAL_PARAMS = (
 #: Default staleness timeouts [s]; 0 disables the check (value held for ever).
 DEFAULT_TIMEOUTS = {"load": 1.0, "pressure": 10.0, "temperature": 10.0, "velocity": 1.0}
 MISSING_LOAD_POLICIES = ("nominal", "skip")
+#: How long [s, ROS clock] a slip may wait for its inputs' stamps to catch up (``align.wait``;
+#: 0 = answer on arrival).
+DEFAULT_ALIGN_WAIT = 1.0
+MAX_ALIGN_WAIT = 60.0
 
 _KEY_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(\.[A-Za-z][A-Za-z0-9_]*)*$")
 

@@ -34,6 +34,9 @@ Decisions (one place, documented in the node's docstring too):
   outside it (extrapolation), ``outside_envelope`` counts those answers (the inputs as
   received, apart from the saturation at the file's ranges). An unreadable envelope is not
   checked and ``last_error`` says why.
+- A slip may be held until the other inputs' stamps have caught up with it, bounded on the
+  ROS clock (``hold``, :mod:`.hold`); it is counted in ``slip_in`` when it is computed, so a
+  pending slip is in neither side of the sum below until it is released.
 
 Every slip message taken is counted in ``slip_in`` and either answered (``forces_out``) or
 counted under one of :data:`UNANSWERED`: ``slip_in == forces_out + sum(UNANSWERED)``.
@@ -51,6 +54,7 @@ from tire_model_ros.model.envelope import Envelope
 from tire_model_ros.model.states import EffectState
 from tire_model_ros.vocabulary import NODE_INPUTS, NS_PER_S
 from tire_model_ros.wheel.history import STATES, StampedHistory
+from tire_model_ros.wheel.hold import SlipHold
 from tire_model_ros.wheel.ranges import SAMPLE_INPUTS, InputRanges, Sample
 
 if TYPE_CHECKING:
@@ -166,6 +170,7 @@ class WheelState:
         self.last_slip_ns: int | None = None
         self.last_error = ""
         self.effects: EffectState | None = None  # hidden states of an effects file
+        self.hold = SlipHold(NODE_INPUTS)  # slips waiting for their inputs' stamps
 
     # -- inputs --------------------------------------------------------------------------
     def set_input(self, name: str, stamp_ns: int, x: float) -> str | None:
@@ -328,6 +333,7 @@ class WheelState:
                 out[f"fallback.{name}.{state}"] = n
         for name, n in self.out_of_range.items():
             out[f"out_of_range.{name}"] = n
+        out.update(self.hold.counts)
         return out
 
     def input_age_s(self, name: str) -> float | None:
