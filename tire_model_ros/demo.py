@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from tire_model_ros.delivery import PLAY
+from tire_model_ros.vocabulary import NS_PER_S
 
 if TYPE_CHECKING:
     from tire_model_ros.diagnosis import Diagnosis
@@ -408,35 +409,29 @@ def account_for_loss(prefixes: list[str], out_play: str, logs: Path) -> bool:
 
 
 def offline(model: TireModel, effects: WheelEffects | None, w: WheelSeries) -> np.ndarray:
-    """The node's computation for every sample of ``w``, offline: the improved model with the
-    effects' hidden states stepped on the same stamps (rows Fx, Fy, Fz, Mx, My, Mz); the plain
-    model where the effects file has nothing for this wheel."""
+    """The node's computation for every sample of ``w``, offline: the node's own per-wheel
+    code (``WheelState.compute``, default settings) fed the replayed messages in stamp order,
+    so the improved model with the effects' hidden states stepped on the same stamps, an input
+    outside the file's range saturated and leaving no trace in the hidden states, as in the
+    node (rows Fx, Fy, Fz, Mx, My, Mz). Only the transport can make the node differ."""
     from tire_model_ros.model.states import EffectState
-    from tire_model_ros.wheel.state import Nominal
+    from tire_model_ros.wheel.params import DEFAULT_TIMEOUTS
+    from tire_model_ros.wheel.state import Settings, WheelModel, WheelState
 
-    nom = Nominal.from_params(model.params)
-    Vx = w.Vx if w.Vx is not None else np.full(len(w), nom.Vx)
-    p = w.p
-    if effects is None:
-        out = model.evaluate(w.Fz, w.kappa, w.alpha, w.gamma, Vx, p, None, full=False)
-        return np.column_stack([out.Fx, out.Fy, out.Fz, out.Mx, out.My, out.Mz])
-    st = EffectState(effects)
-    rows = np.empty((len(w), 6))
-    for i in range(len(w)):
-        rows[i] = st.evaluate(
-            model,
-            float(w.t[i]),
-            float(w.Fz[i]),
-            float(w.kappa[i]),
-            float(w.alpha[i]),
-            float(w.gamma[i]),
-            float(Vx[i]),
-            None,
-            None if p is None else float(p[i]),
-            nom.p,
-            nom.T,
-            nom.Fz,
-        )
+    ws = WheelState("offline", "offline")
+    ws.effects = EffectState(effects) if effects is not None else None
+    wm, settings = WheelModel.of(model), Settings.of(DEFAULT_TIMEOUTS, True, False)
+    t_ns = np.round(w.t * NS_PER_S).astype(np.int64)
+    inputs = {"load": w.Fz, "pressure": w.p, "temperature": w.T, "velocity": w.Vx}
+    rows = np.full((len(w), 6), np.nan)
+    for i, t in enumerate(t_ns.tolist()):
+        for name, values in inputs.items():  # each input as the node takes its messages
+            if values is not None:
+                ws.set_input(name, t, float(values[i]))
+        out, _ = ws.compute(float(w.kappa[i]), float(w.alpha[i]), float(w.gamma[i]), t, wm,
+                            settings)  # fmt: skip
+        if out is not None:
+            rows[i] = out
     return rows
 
 
