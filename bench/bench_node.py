@@ -2,11 +2,12 @@
 
 For 1 and 4 wheels, the node and then the echo node (same topics: it republishes each slip
 as a WrenchStamped with its stamp, and subscribes to load) run as their own process. This
-process publishes ``P/slip`` and ``P/load`` for every wheel at a stepped rate and receives
-``P/forces`` (publisher and receiver share one process, the receiver on an EventsExecutor
-thread, so the machine's two cores are split: driver, server; the driver publishes and
-receives serialized bytes to stay light). The echo node is plain rclpy: it deserialises each
-slip and publishes a message object; tire_model_node subscribes raw and reads the CDR bytes.
+process publishes ``P/load`` and then ``P/slip`` with the same stamp for every wheel at a
+stepped rate and receives ``P/forces`` (publisher and receiver share one process, the
+receiver on an EventsExecutor thread, so the machine's two cores are split: driver, server;
+the driver publishes and receives serialized bytes to stay light). The echo node is plain
+rclpy: it deserialises each slip and publishes a message object; tire_model_node subscribes
+raw and reads the CDR bytes.
 Per step: slips sent and forces received, drops, latency from slip stamp (wall clock at
 publish) to receipt (p50/p99), and the server's CPU time per slip (its load included), which
 other load on the machine does not inflate as much as latency.
@@ -23,6 +24,11 @@ machine shared with other work, normal scheduling leaves the tail to whoever els
 The highest rate "sustained" is the highest step reached from the lowest rate up with zero
 drops at every step and a publish rate of at least 95 % of the target.
 
+The node runs with its default ``align.wait`` (a slip is held until the load stamped with it
+has arrived): the load published first, each slip is answered on arrival (the usual path);
+``--slip-first`` publishes each slip before its load, so that every slip is held and answered
+when its load arrives (the held path; latency then includes the load's delivery).
+
 Queue depth (``--depth``, default 100 = the node's ``qos_depth``) is the same for all three.
 The driver used to keep 1000: with reliable KEEP_LAST queues that deep, Fast DDS stalls the
 driver for 1-9 ms every few hundred ms (a perf sched trace shows its DDS receive thread busy
@@ -38,6 +44,7 @@ zero loss.
 
     .venv/bin/python bench/bench_node.py [--rates 250,500,1000,2000,4000] [--seconds 2]
         [--rt-priority 10] [--server-cpus 1] [--driver-cpus 0] [--depth 100] [--no-hog]
+        [--slip-first]
 """
 
 from __future__ import annotations
@@ -174,8 +181,9 @@ class Driver:
             self.node.count_publishers(f"{p}/forces") > 0 for p in self.prefixes
         )
 
-    def run_step(self, rate: float, seconds: float) -> dict:
-        """Publish slip+load per wheel at ``rate`` Hz for ``seconds``; collect the forces."""
+    def run_step(self, rate: float, seconds: float, slip_first: bool = False) -> dict:
+        """Publish load+slip (``slip_first``: slip+load) per wheel at ``rate`` Hz for
+        ``seconds``, both with the same stamp; collect the forces."""
         for box in self.recv.values():
             box.clear()
         from rclpy.serialization import serialize_message
@@ -185,7 +193,7 @@ class Driver:
         slip = bytearray(serialize_message(msg))  # stamp patched in per message
         msg = self.WrenchStamped()
         msg.wrench.force.z = 5000.0
-        load = serialize_message(msg)
+        load = bytearray(serialize_message(msg))  # stamped with its slip
         pairs = list(zip(self.slip_pubs, self.load_pubs, strict=True))
         n = int(rate * seconds)
         sent = 0
@@ -197,9 +205,15 @@ class Driver:
             if delay > 0:
                 time.sleep(delay)
             for sp, lp in pairs:
-                lp.publish(load)
-                _STAMP.pack_into(slip, 4, *divmod(time.time_ns(), 1_000_000_000))
-                sp.publish(bytes(slip))
+                stamp = divmod(time.time_ns(), 1_000_000_000)
+                _STAMP.pack_into(slip, 4, *stamp)
+                _STAMP.pack_into(load, 4, *stamp)
+                if slip_first:
+                    sp.publish(bytes(slip))
+                    lp.publish(bytes(load))
+                else:
+                    lp.publish(bytes(load))
+                    sp.publish(bytes(slip))
                 sent += 1
         elapsed = time.perf_counter() - t0
         expected = sent
@@ -264,7 +278,7 @@ def bench(
         driver.run_step(100.0, 1.0)  # warm-up
         for rate in rates:
             cpu0 = cpu_seconds(proc.proc.pid)
-            row = driver.run_step(rate, args.seconds)
+            row = driver.run_step(rate, args.seconds, args.slip_first)
             cpu = cpu_seconds(proc.proc.pid) - cpu0
             # server CPU per slip (its load message included), robust to other machine load
             row.update(server=kind, wheels=len(prefixes), cpu_us=1e6 * cpu / max(row["sent"], 1))
@@ -356,6 +370,9 @@ def main(argv: list[str] | None = None) -> int:
         "--depth", type=int, default=100, help="reliable queue depth of driver, node and echo"
     )
     ap.add_argument("--no-hog", action="store_true", help="skip the loaded-machine run")
+    ap.add_argument(
+        "--slip-first", action="store_true", help="each slip before its load (held path)"
+    )
     ap.add_argument("--echo", nargs="*", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.echo is not None:

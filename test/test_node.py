@@ -428,9 +428,9 @@ def test_coefficient_descriptors(client, node1):
     assert d[1].description and (rng.from_value, rng.to_value) == (-10.0, 10.0)
     assert d[2].floating_point_range[0].from_value == 0.0
     rng = d[3].floating_point_range[0]
-    assert "ROS clock" in d[3].description and (rng.from_value, rng.to_value) == (0.0, 60.0)
+    assert "ROS clock" in d[3].description and (rng.from_value, rng.to_value) == (0.0, 300.0)
     assert client.set_parameters(N1, {"align.wait": 0.25})[0].successful  # live
-    assert not client.set_parameters(N1, {"align.wait": 61.0})[0].successful
+    assert not client.set_parameters(N1, {"align.wait": 301.0})[0].successful
     assert client.get_parameters(N1, ["align.wait"]) == {"align.wait": 0.25}
     assert client.set_parameters(N1, {"align.wait": 0.0})[0].successful
 

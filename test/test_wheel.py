@@ -318,6 +318,7 @@ def test_late_loads_are_matched_as_the_offline_tool_matches_them(wm):
             assert right == n and [s for s, _ in g.out] == list(stamps)
             c = g.w.counters()
             assert c["released_by_wait"] == 0 and c["held"] == c["released_caught_up"] > n // 2
+            assert 200 < c["longest_catch_up_ms"] <= 400  # the longest delay of a load
         else:
             assert right < n // 2 and g.w.counters()["held"] == 0  # answered on arrival
 

@@ -399,6 +399,7 @@ def account_for_loss(prefixes: list[str], out_play: str, logs: Path) -> bool:
             ok = False
             continue
         say("4", f"{prefix}: {acc.text()}")
+        say("4", f"{prefix}: {held_text(nodes[prefix])}")
         if acc.unexplained:
             say(
                 "4",
@@ -406,6 +407,20 @@ def account_for_loss(prefixes: list[str], out_play: str, logs: Path) -> bool:
             )
             ok = False
     return ok
+
+
+def held_text(counts: dict[str, int]) -> str:
+    """What the node's hold did (``align.wait``): slips that came before their inputs."""
+    c = {k: counts.get(k, 0) for k in ("held", "released_caught_up", "released_by_wait",
+                                       "released_by_overflow", "released_by_flush")}  # fmt: skip
+    return (
+        f"the node held {c['held']} slips until their inputs caught up: "
+        f"{c['released_caught_up']} answered once they had, {c['released_by_wait']} after "
+        f"waiting the bound, {c['released_by_overflow']} by overflow, "
+        f"{c['released_by_flush']} at shutdown (the longest wait that ended with the inputs: "
+        f"{counts.get('longest_catch_up_ms', 0)} ms); load missing for "
+        f"{sum(v for k, v in counts.items() if k.startswith('fallback.load.'))} slips"
+    )
 
 
 def offline(model: TireModel, effects: WheelEffects | None, w: WheelSeries) -> np.ndarray:

@@ -24,7 +24,7 @@ or after it; otherwise it is held, in order, until they have (``released_caught_
 after the input message that completed it) or until it has waited ``align.wait``
 (``released_by_wait``, computed with what there is; a timer on the ROS clock releases it, so a
 paused simulation holds it). An input never received or no longer arriving is not waited for.
-At most 4096 slips per wheel are held (``released_by_overflow``: the oldest answered early);
+At most 8192 slips per wheel are held (``released_by_overflow``: the oldest answered early);
 deactivation and shutdown answer the rest (``released_by_flush``). Inputs must be stamped on
 the slips' clock: an input stamped behind (e.g. zero stamps) holds every slip the full wait.
 
@@ -48,7 +48,8 @@ ambient_pressure : double    [Pa], default 101325
 missing_load : string        "nominal" (FNOMIN, default) or "skip" when load is missing/stale
 timeout.{load,pressure,temperature,velocity} : double  staleness [s of stamp time]; 0 = never
 align.wait : double          [s] on the ROS clock a slip may wait for the inputs' stamps to
-                             reach it (default 1; 0 = answer each slip on arrival)
+                             reach it, and an input may be silent and still be waited for
+                             (default 30, see wheel.params; 0 = answer each slip on arrival)
 diagnostics_period : double  [s] period of /diagnostics on the ROS clock (read-only), default 1
 qos_depth : int              depth of the keep-last queues (read-only), default 100
 input_reliability : string   best_available (default) | reliable | best_effort (read-only)

@@ -9,8 +9,13 @@ bag give the answers the offline tool gives.
 
 The history keeps the last :data:`CAPACITY` values in stamp order (messages that arrive out of
 order are put in their place; of equal stamps the later arrival wins, as the later message of
-a bag). 256 values are a quarter of a second of a 1 kHz input: a slip stamped further back than
-that finds no value old enough (state ``"ahead"``) and takes the nominal one.
+a bag). 8192 values are 8 s of a 1 kHz input: the slip topic may fall behind the inputs (a
+reliable topic that loses a sample delivers nothing after it until the writer's next
+heartbeat repairs it, every 3 s in Fast DDS by default); ``make demo``'s replay beside two
+CPU hogs had inputs up to 457 messages ahead of the slips, which 256 values did not cover. A
+slip stamped further back than the history reaches finds no value old enough (state
+``"ahead"``) and takes the nominal one. Appending is a store (the window is moved back once
+per ``capacity`` appends); only a message out of order moves values.
 
 One deliberate difference from the offline reader: that one holds an optional channel's first
 value backwards over the samples before it (it sees the whole recording); the node cannot see
@@ -24,7 +29,7 @@ import numpy.typing as npt
 
 from tire_model_ros.recording.align import latest_at_or_before
 
-CAPACITY = 256
+CAPACITY = 8192
 #: States of a lookup: a value at or before the stamp and fresh; nothing ever received; the
 #: value found is older than the timeout; every value is stamped after the slip.
 STATES = ("ok", "never", "stale", "ahead")

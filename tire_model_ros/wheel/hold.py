@@ -22,7 +22,8 @@ slip's time, so no value at or before it is still in flight).
 
 Counters: ``held`` (slips queued) = ``released_caught_up`` + ``released_by_wait`` +
 ``released_by_overflow`` + ``released_by_flush`` + the ones still pending (:attr:`SlipHold.
-pending`, a gauge).
+pending`, a gauge). ``longest_catch_up_ms``: the longest a slip waited and then got its inputs
+(ROS clock; against the bound it says how much margin the bound has).
 
 A wait bound of 0 answers every slip on arrival (no input is live then).
 """
@@ -33,8 +34,9 @@ from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-#: Pending slips per wheel at most: 4 s of a 1 kHz slip topic.
-CAPACITY = 4096
+#: Pending slips per wheel at most: 8 s of a 1 kHz slip topic (at that rate a stopped input
+#: releases slips by overflow after 8 s, before the default bound; ~2 MB of slips).
+CAPACITY = 8192
 #: Why a held slip was released (the counters' names).
 RELEASES = (
     "released_caught_up",
@@ -75,6 +77,7 @@ class SlipHold:
         self._arrived = [_NEVER] * len(self.inputs)
         self.queue: deque[PendingSlip] = deque()
         self.counts = dict.fromkeys(HOLD_COUNTS, 0)
+        self.longest_catch_up_ns = 0
 
     @property
     def pending(self) -> int:
@@ -130,7 +133,10 @@ class SlipHold:
             if waiting and not self.ready(slip.stamp_ns, now_ns, wait_ns):
                 break
             queue.popleft()
-            self.counts[self._reason(slip, wait_ns)] += 1
+            reason = self._reason(slip, wait_ns)
+            self.counts[reason] += 1
+            if reason == "released_caught_up":
+                self.longest_catch_up_ns = max(self.longest_catch_up_ns, now_ns - slip.arrival_ns)
             out.append(slip)
         return out
 

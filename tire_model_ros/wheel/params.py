@@ -50,9 +50,13 @@ GLOBAL_PARAMS = (
 DEFAULT_TIMEOUTS = {"load": 1.0, "pressure": 10.0, "temperature": 10.0, "velocity": 1.0}
 MISSING_LOAD_POLICIES = ("nominal", "skip")
 #: How long [s, ROS clock] a slip may wait for its inputs' stamps to catch up (``align.wait``;
-#: 0 = answer on arrival).
-DEFAULT_ALIGN_WAIT = 1.0
-MAX_ALIGN_WAIT = 60.0
+#: 0 = answer on arrival). It is also how long an input may stay silent and still be waited
+#: for: a reliable topic that loses a sample delivers nothing after it until the writer's next
+#: heartbeat repairs it (every 3 s in Fast DDS by default). ``make demo``'s replay beside two
+#: CPU hogs: slips waited up to 3.1 s for their load, and the load topic went silent for up to
+#: 14.6 s while slips kept coming (5, 12 and 15 s of bound were needed in three runs).
+DEFAULT_ALIGN_WAIT = 30.0
+MAX_ALIGN_WAIT = 300.0
 
 _KEY_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(\.[A-Za-z][A-Za-z0-9_]*)*$")
 

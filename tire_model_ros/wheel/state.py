@@ -334,6 +334,7 @@ class WheelState:
         for name, n in self.out_of_range.items():
             out[f"out_of_range.{name}"] = n
         out.update(self.hold.counts)
+        out["longest_catch_up_ms"] = self.hold.longest_catch_up_ns // 1_000_000
         return out
 
     def input_age_s(self, name: str) -> float | None:
