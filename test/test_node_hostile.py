@@ -301,7 +301,8 @@ def test_a_slip_whose_load_never_comes_waits_for_the_ros_clock(sim, client):
 # ------------------------------------------------------------------ hostile inputs
 @pytest.fixture(scope="module")
 def hostile(client):
-    proc = start(client, "tire_h", "wheels:=['/h']", "diagnostics_period:=0.3",
+    # align.wait 0: these tests send inputs, then slips stamped after them (answered on arrival)
+    proc = start(client, "tire_h", "wheels:=['/h']", "diagnostics_period:=0.3", "align.wait:=0.0",
                  *(f"timeout.{k}:=0.0" for k in NODE_INPUTS))  # fmt: skip
     topics = [f"/h/{c}" for c in ("slip", *NODE_INPUTS)]
 

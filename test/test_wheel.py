@@ -15,7 +15,7 @@ from tire_model_ros.model.states import EffectState, Node, WheelEffects
 from tire_model_ros.recording.align import hold_latest, latest_at_or_before
 from tire_model_ros.vocabulary import NODE_INPUTS, NS_PER_S
 from tire_model_ros.wheel.history import StampedHistory
-from tire_model_ros.wheel.hold import RELEASES, PendingSlip
+from tire_model_ros.wheel.hold import RELEASES, PendingSlip, SlipHold
 from tire_model_ros.wheel.state import (
     UNANSWERED,
     Settings,
@@ -290,6 +290,22 @@ def test_a_slip_before_its_load_is_held_and_answered_with_it(wm):
     want = wm.model.evaluate_one(3000.0, 0.05, 0.02, 0.0, wm.nominal.Vx, wm.nominal.p,
                                  wm.nominal.T)  # fmt: skip
     assert g.out[0][1] == pytest.approx(want, rel=1e-12)
+
+
+def test_the_usual_slip_is_answered_without_a_look_at_the_clock():
+    """Nothing pending and every input received already at the slip's stamp: ``quick``, a
+    comparison; an input never received does not count, one behind sends the slip to
+    ``arrive`` (which needs the clock)."""
+    hold = SlipHold(NODE_INPUTS)
+    assert hold.quick(5 * S)  # nothing received: nothing to wait for
+    hold.note("load", 10, 0)
+    hold.note("velocity", 7, 0)
+    assert hold.quick(7) and not hold.quick(8)
+    assert hold.arrive(PendingSlip(0.0, 0.0, 0.0, 8, 2 * S), 2 * S, S)  # velocity stopped
+    assert not hold.arrive(PendingSlip(0.0, 0.0, 0.0, 8, 0), 0, S)  # velocity arriving
+    assert not hold.quick(7)  # behind a pending slip
+    hold.note("velocity", 8, 0)
+    assert hold.release(0, S) and hold.quick(8)
 
 
 def test_late_loads_are_matched_as_the_offline_tool_matches_them(wm):

@@ -45,7 +45,8 @@ RELEASES = (
     "released_by_flush",
 )
 HOLD_COUNTS = ("held", *RELEASES)
-_NEVER = -(1 << 62)  # stamp and arrival of an input never received
+_NEVER = -(1 << 62)  # arrival of an input never received
+_NONE = 1 << 62  # its newest stamp: past every slip, so it never holds one
 
 
 @dataclass(slots=True)
@@ -71,13 +72,16 @@ class SlipHold:
         self.inputs = tuple(inputs)
         self.capacity = capacity
         self._index = {name: i for i, name in enumerate(self.inputs)}
-        # per input: its newest stamp and its last arrival (lists: the readiness check runs
-        # on every slip, and zip over two short lists is the cheapest loop here)
-        self._seen = [_NEVER] * len(self.inputs)
+        # per input: its newest stamp and its last arrival (lists: zip over two short lists is
+        # the cheapest loop here); floor, the oldest newest stamp of the inputs received: a
+        # slip stamped at or before it is ready without a look at the clock (the usual case)
+        self._seen = [_NONE] * len(self.inputs)
         self._arrived = [_NEVER] * len(self.inputs)
+        self.floor = _NONE
         self.queue: deque[PendingSlip] = deque()
         self.counts = dict.fromkeys(HOLD_COUNTS, 0)
         self.longest_catch_up_ns = 0
+        self.lagging = ""  # the input the last slip released by the wait lacked
 
     @property
     def pending(self) -> int:
@@ -87,17 +91,26 @@ class SlipHold:
         """Input ``name`` delivered a message stamped ``stamp_ns`` (accepted or rejected: the
         topic has passed that stamp either way) at ``now_ns``."""
         i = self._index[name]
-        if stamp_ns > self._seen[i]:
+        if stamp_ns > self._seen[i] or self._seen[i] == _NONE:
             self._seen[i] = stamp_ns
+            self.floor = min(self._seen)
         self._arrived[i] = now_ns
 
     def ready(self, stamp_ns: int, now_ns: int, wait_ns: int) -> bool:
         """Whether every live input has reached ``stamp_ns``."""
+        if stamp_ns <= self.floor:
+            return True
         since = now_ns - wait_ns
         for seen, arrived in zip(self._seen, self._arrived, strict=True):
             if seen < stamp_ns and since < arrived <= now_ns:
                 return False
         return True
+
+    def quick(self, stamp_ns: int) -> bool:
+        """Whether a slip just arrived may be answered at once whatever the clock says:
+        nothing pending, and every input received has reached its stamp (the usual case, a
+        comparison; when False, :meth:`arrive` decides)."""
+        return stamp_ns <= self.floor and not self.queue
 
     def admit(self, stamp_ns: int, now_ns: int, wait_ns: int) -> bool:
         """Whether a slip just arrived may be answered at once: nothing pending, and ready."""
@@ -144,8 +157,9 @@ class SlipHold:
         """Caught up, unless an input live when the slip arrived has not reached its stamp
         (the slip waited out the bound, or that input stopped)."""
         since = slip.arrival_ns - wait_ns
-        for seen, arrived in zip(self._seen, self._arrived, strict=True):
+        for name, seen, arrived in zip(self.inputs, self._seen, self._arrived, strict=True):
             if seen < slip.stamp_ns and arrived > since:
+                self.lagging = name
                 return "released_by_wait"
         return "released_caught_up"
 
