@@ -18,7 +18,7 @@ from conftest import MF61_TIR, ROOT, TOOL
 from tire_model_ros.diagnosis import Diagnosis, diagnose
 from tire_model_ros.diagnosis.dynamics import relaxed_slip, thermal_state_K
 from tire_model_ros.diagnosis.evidence import agree_doing, rms
-from tire_model_ros.diagnosis.folds import rare_folds
+from tire_model_ros.diagnosis.folds import SPLIT, rare_folds
 from tire_model_ros.diagnosis.result import MZ_COEFS
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects
@@ -299,24 +299,33 @@ def test_rare_sweeps_are_stratified_over_all_folds():
     the selection folds."""
     levels = [(-4, 0), (2, 0), (4, 0), (-2, 0), (-6, 0), (6, 0)]  # pressures, not monotone
     rare: list = [None]
-    for lv in levels:
-        rare += [("y", lv), ("y", lv), None, ("x", lv), None]  # a lateral sweep in two pieces
-    rare += [("y", (0, 4)), None, ("y", (0, 8))]  # two camber sweeps
+    for lv in levels:  # a lateral sweep in two pieces
+        rare += [("y", lv, 0), ("y", lv, 0), None, ("x", lv, 0), None]
+    rare += [("y", (0, 4), 0), None, ("y", (0, 8), 0)]  # two camber sweeps
     folds = rare_folds(rare, np.random.default_rng(0))
     assert set(folds) == {j for j, r in enumerate(rare) if r is not None}
     held = {rare[j] for j, f in folds.items() if f == 2}
-    assert {k for k, _ in held} == {"x", "y"} and len(held) == 2
-    assert {lv for _, lv in held} == {(-4, 0), (4, 0)}  # interior, farthest from usual
+    assert {k for k, _, _ in held} == {"x", "y"} and len(held) == 2
+    assert {lv for _, lv, _ in held} == {(-4, 0), (4, 0)}  # interior, farthest from usual
     for j, r in enumerate(rare[:-1]):
         if r is not None and rare[j + 1] == r and folds[j] != 2:
             assert {folds[j], folds[j + 1]} == {0, 1}  # a condition visited once: split
-    twice = [None, ("y", (-4, 0)), None, ("y", (3, 0)), None, ("y", (-4, 0)), ("y", (-4, 0))]
+    y4 = ("y", (-4, 0), 0)
+    twice = [None, y4, None, ("y", (3, 0), 0), None, y4, y4]
     f2 = rare_folds(twice, np.random.default_rng(1))
     assert f2[1] != f2[5] and f2[5] == f2[6]  # two visits: one in each, a visit kept whole
+    # The same low pressure at a higher load (a corner: the sidewall's deflection) is a visit
+    # of its own: its pieces are split between the selection folds, not kept in one.
+    corner = [None, ("y", (-4, 0), 3), ("y", (-4, 0), 3), ("y", (-4, 0), 3), None, y4, y4]
+    f3 = rare_folds(corner, np.random.default_rng(2))
+    assert {f3[1], f3[2], f3[3]} == {0, 1}
+    once = [None, ("y", (-4, 0), 3), None, y4, None, y4]  # a corner swept in one block
+    assert rare_folds(once, np.random.default_rng(3))[1] == SPLIT
     for kind in ("x", "y"):
         sel_folds = [f for j, f in folds.items() if rare[j][0] == kind and f != 2]
-        assert sel_folds.count(0) >= 2 and sel_folds.count(1) >= 2
-    assert {folds[len(rare) - 3], folds[len(rare) - 1]} == {0, 1}  # camber: both selected
+        for f in (0, 1):  # a split sweep is in both
+            assert sel_folds.count(f) + sel_folds.count(SPLIT) >= 2
+    assert folds[len(rare) - 3] == folds[len(rare) - 1] == SPLIT  # camber: in both, split
     # Four pressures, one sweep of each kind at each: too few to hold one out.
     four = [r for r in rare[: 1 + 5 * 4]]
     assert 2 not in rare_folds(four, np.random.default_rng(0)).values()

@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import math
 import sys
 from collections.abc import Mapping
 from pathlib import Path
@@ -22,6 +21,7 @@ import numpy.typing as npt
 
 from tire_model_ros.atomic import write_atomic
 from tire_model_ros.cli.tirarg import add_lenient_argument, load_model
+from tire_model_ros.importers.csvfile import read_table
 from tire_model_ros.vocabulary import FORCE_CHANNELS
 
 if TYPE_CHECKING:
@@ -75,21 +75,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_lenient_argument(parser)
 
 
-def _cell(path: Path, line_no: int, name: str, text: str) -> float:
-    """One input cell as a finite float; ValueError naming file, line and column."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(
-            f"{path}: line {line_no}: column {name!r}: {text!r} is not a number"
-        ) from None
-    if not math.isfinite(value):
-        raise ValueError(f"{path}: line {line_no}: column {name!r}: {text!r} is not finite")
-    return value
-
-
 def read_inputs(path: Path) -> tuple[dict[str, Array], npt.NDArray[np.int64]]:
-    """Columns of IN.csv as float arrays and the CSV line of each row.
+    """Columns of IN.csv as float arrays and the CSV line of each row (the importers' CSV
+    reader, :func:`~tire_model_ros.importers.csvfile.read_table`), every cell finite.
 
     Raises
     ------
@@ -97,32 +85,14 @@ def read_inputs(path: Path) -> tuple[dict[str, Array], npt.NDArray[np.int64]]:
         naming the file, the line and the column: a missing column, a short row, a cell that
         is not a finite number, a file that is not text.
     """
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:  # a byte-order mark is no column
-            rows = list(csv.reader(fh))
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{path}: not a text CSV file ({exc.reason})") from None
-    if not rows:
-        raise ValueError(f"{path}: empty file, expected a header with {','.join(REQUIRED)}")
-    header = [h.strip() for h in rows[0]]
-    missing = [name for name in REQUIRED if name not in header]
-    if missing:
-        raise ValueError(f"{path}: line 1: missing column(s) {', '.join(missing)}")
-    wanted = [name for name in REQUIRED + OPTIONAL if name in header]
-    index = {name: header.index(name) for name in wanted}
-    data: dict[str, list[float]] = {name: [] for name in wanted}
-    lines: list[int] = []
-    for line_no, row in enumerate(rows[1:], start=2):
-        if not row or all(not cell.strip() for cell in row):
-            continue  # blank line
-        for name in wanted:
-            col = index[name]
-            if col >= len(row):
-                raise ValueError(f"{path}: line {line_no}: column {name!r} missing (short row)")
-            data[name].append(_cell(path, line_no, name, row[col]))
-        lines.append(line_no)
-    columns = {name: np.asarray(values, dtype=np.float64) for name, values in data.items()}
-    return columns, np.asarray(lines, dtype=np.int64)
+    columns, lines = read_table(path, REQUIRED, OPTIONAL)
+    bad = [(int(np.argmin(np.isfinite(v))), name) for name, v in columns.items()
+           if not np.isfinite(v).all()]  # fmt: skip
+    if bad:
+        row, name = min(bad)  # the first line with a non-finite cell
+        value = float(columns[name][row])
+        raise ValueError(f"{path}: line {lines[row]}: column {name!r}: '{value}' is not finite")
+    return columns, lines
 
 
 def non_finite_rows(outputs: Mapping[str, Array]) -> npt.NDArray[np.bool_]:

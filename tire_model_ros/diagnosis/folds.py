@@ -25,6 +25,15 @@ BLOCK_S = 10.0  # a continuous run (no pause) is cut into blocks of about this l
 MIN_RARE_PER_FOLD = 2
 RARE_PRESSURE = 0.05  # a sweep 5 % off the session's usual pressure is at a rare condition
 RARE_CAMBER_RAD = np.radians(0.5)
+# A block sweeps a slip when it reaches this share of the session's largest value of it (the
+# slip held while the other is swept, or the end of a sweep in the next block, does not).
+MIN_SWEEP_SHARE = 0.2
+LOAD_STEP = 0.1  # of the session's usual load: a rare sweep's load level (its identity only)
+
+#: A block at a rare condition: the slip it sweeps ('x'/'y'), its pressure and camber levels
+#: (what makes it rare), and its load level (what tells one corner of the range from another).
+Rare = tuple[str, tuple[int, ...], int]
+SPLIT = -1  # the fold of a rare sweep seen in one block only: its segments alternate
 
 
 def blocks(segments: Sequence[Segment], t: Array, block_s: float = BLOCK_S) -> list[list[int]]:
@@ -84,8 +93,10 @@ def assign_folds(
         if rare[j] is None:
             common.append(b)
             continue
-        for i in b:
-            fold[segments[i].index] = rare_fold[j]
+        f = rare_fold[j]
+        first = int(rng.integers(2))
+        for n, i in enumerate(b):  # a split block: way out in one fold, way back in the other
+            fold[segments[i].index] = f if f != SPLIT else (first + n) % 2
     for j in range(0, len(common), 3):
         perm = rng.permutation(3)
         for k, b in enumerate(common[j : j + 3]):
@@ -94,34 +105,36 @@ def assign_folds(
     return fold
 
 
-def rare_folds(
-    rare: Sequence[tuple[str, tuple[int, ...]] | None], rng: np.random.Generator
-) -> dict[int, int]:
-    """Fold of each rare block (index into ``rare``: its (kind, condition) or None).
+def rare_folds(rare: Sequence[Rare | None], rng: np.random.Generator) -> dict[int, int]:
+    """Fold of each rare block (index into ``rare``: its :data:`Rare` or None).
 
-    A rare sweep is a run of blocks of one kind at one condition. Rare sweeps alternate, per
-    kind, between the two selection folds, so that every selection fit sees one and predicts
-    another; a condition visited again goes to the other fold than its last visit (a corner
-    of the operating range visited twice: one visit in each), and the pieces of a condition
-    visited once alternate (nothing about it could be validated otherwise). A stratum (a kind
+    A rare sweep is a run of blocks of one kind at one condition and load. A condition is a
+    pressure and camber at a load: a low pressure at a high load (the deflection of a sidewall
+    touching the road) is a visit of its own, not a second visit of that pressure. Rare
+    sweeps alternate, per kind, between the two selection folds, so that every selection fit
+    sees one and predicts another; a condition visited again goes to the other fold than its
+    last visit (a corner of the operating range visited twice: one visit in each), and the
+    pieces of a condition visited once alternate (nothing about it could be validated
+    otherwise); visited in one block only, that block is :data:`SPLIT`: its segments
+    alternate. A stratum (a kind
     and the conditions it varies) with enough rare sweeps that each selection fold keeps
     MIN_RARE_PER_FOLD of them also gives one to the final held-out fold: the interior
     condition farthest from the usual one (the held-out test interpolates, as the fit does,
     and sees the effect where it is strongest; the kinds at different conditions).
     """
-    runs: list[tuple[str, tuple[int, ...], list[int]]] = []
+    runs: list[tuple[str, tuple[int, ...], int, list[int]]] = []
     last: dict[str, int] = {}  # kind -> its latest run
     for j, r in enumerate(rare):
         if r is None:
             continue
-        kind, cond = r
-        if kind in last and runs[last[kind]][1] == cond:
-            runs[last[kind]][2].append(j)
+        kind, cond, load = r
+        if kind in last and runs[last[kind]][1:3] == (cond, load):
+            runs[last[kind]][3].append(j)
             continue
         last[kind] = len(runs)
-        runs.append((kind, cond, [j]))
+        runs.append((kind, cond, load, [j]))
     strata: dict[tuple[str, tuple[int, ...]], list[int]] = {}
-    for k, (kind, cond, _) in enumerate(runs):
+    for k, (kind, cond, _, _) in enumerate(runs):
         strata.setdefault((kind, tuple(i for i, v in enumerate(cond) if v)), []).append(k)
     held: set[int] = set()
     taken: set[tuple[int, ...]] = set()
@@ -135,33 +148,34 @@ def rare_folds(
             taken.add(far)
     out: dict[int, int] = {}
     turn: dict[str, int] = {}  # per kind: the fold of its next new condition
-    again: dict[tuple[str, tuple[int, ...]], int] = {}  # a condition seen: its next run's fold
-    visits = {key: sum(1 for r in runs if r[:2] == key) for key in {r[:2] for r in runs}}
-    for k, (kind, cond, js) in enumerate(runs):
+    again: dict[Rare, int] = {}  # a condition seen: its next run's fold
+    visits = {v: sum(1 for r in runs if r[:3] == v) for v in {r[:3] for r in runs}}
+    for k, (kind, cond, load, js) in enumerate(runs):
+        visit = (kind, cond, load)
         if k in held:
             out.update(dict.fromkeys(js, 2))
             continue
-        if visits[(kind, cond)] == 1 and len(js) > 1:  # one visit: its pieces alternate
+        if visits[visit] == 1:  # one visit: its pieces alternate (one piece: its segments)
             f = turn.setdefault(kind, int(rng.integers(2)))
-            out.update({j: (f + i) % 2 for i, j in enumerate(js)})
+            out.update({j: (f + i) % 2 if len(js) > 1 else SPLIT for i, j in enumerate(js)})
             continue
-        if (kind, cond) in again:
-            f = again[(kind, cond)]
+        if visit in again:
+            f = again[visit]
         else:
             f = turn.setdefault(kind, int(rng.integers(2)))
             turn[kind] = 1 - f
         out.update(dict.fromkeys(js, f))
-        again[(kind, cond)] = 1 - f
+        again[visit] = 1 - f
     return out
 
 
 def rare_kind(
     segments: Sequence[Segment], block: Sequence[int], inputs: Mapping[str, Array | None]
-) -> tuple[str, tuple[int, ...]] | None:
-    """('x'/'y', condition) if the block runs at a rare condition, else None.
+) -> Rare | None:
+    """The block's :data:`Rare` if it runs at a rare condition, else None.
 
     'x'/'y' is the slip the sweep excites; the condition is its pressure and camber, rounded
-    to the tolerances that make them rare.
+    to the tolerances that make them rare; the load is rounded to LOAD_STEP.
     """
     idx = np.concatenate([segments[i].index for i in block])
     rare = False
@@ -183,6 +197,11 @@ def rare_kind(
     assert kappa is not None and alpha is not None
     k = float(np.max(np.abs(kappa[idx])))
     a = float(np.max(np.abs(alpha[idx])))
-    if k < 0.01 and a < np.radians(1.0):
-        return None  # a pause or hold at the condition: nothing to fit
-    return ("x" if k / 0.1 > a / np.radians(5.0) else "y"), tuple(cond)
+    k_all, a_all = float(np.max(np.abs(kappa))), float(np.max(np.abs(alpha)))
+    if k < max(0.01, MIN_SWEEP_SHARE * k_all) and a < max(np.radians(1.0), MIN_SWEEP_SHARE * a_all):
+        return None  # a pause, a hold or the tail of a sweep at the condition: nothing to fit
+    Fz = inputs["Fz"]
+    assert Fz is not None
+    ref_fz = max(float(np.median(Fz)), 1e-9)
+    load = round((float(np.median(Fz[idx])) - ref_fz) / (LOAD_STEP * ref_fz))
+    return ("x" if k / 0.1 > a / np.radians(5.0) else "y"), tuple(cond), load
