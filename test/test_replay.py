@@ -43,7 +43,8 @@ def test_node_on_played_recording_reproduces_eval(tmp_path):
     write_recording(tmp_path / "run", [w])
     rec = read_recording(tmp_path / "run")[PREFIX]  # exactly what play will publish
     env = ros_util.ros_env()
-    node_args = ["--ros-args", "-p", f"tir_file:={DEFAULT_TIR}", "-p", f'wheels:=["{PREFIX}"]']
+    node_args = ["--ros-args", "-p", f"tir_file:={DEFAULT_TIR}", "-p", f'wheels:=["{PREFIX}"]',
+                 "-p", "align.wait:=30.0"]  # a replay: every slip with its own load  # fmt: skip
     node = ros_util.NodeProcess([*ros_util.node_command(), *node_args], env)
     record_args = ["-o", str(tmp_path / "forces"), "--wheels", PREFIX, "--count", str(len(rec))]
     recorder = ros_util.NodeProcess([*TOOL, "record", *record_args, "--duration", "150"], env)

@@ -41,6 +41,7 @@ import numpy as np
 
 from tire_model_ros.delivery import PLAY
 from tire_model_ros.vocabulary import NS_PER_S
+from tire_model_ros.wheel.params import REPLAY_ALIGN_WAIT
 
 if TYPE_CHECKING:
     from tire_model_ros.diagnosis import Diagnosis
@@ -303,6 +304,8 @@ def step_node(wheels: Wheels, diag: Diagnosis, tir: Path, improved: Path, out: P
         f"effects_file:={effects_path(improved)}",
         "-p",
         f"wheels:={json.dumps(prefixes)}",
+        "-p",
+        f"align.wait:={REPLAY_ALIGN_WAIT}",  # a replay: exact alignment over latency
     ]
     forces_bag = out / "node_forces"
     rec_cmd = [

@@ -49,7 +49,7 @@ missing_load : string        "nominal" (FNOMIN, default) or "skip" when load is 
 timeout.{load,pressure,temperature,velocity} : double  staleness [s of stamp time]; 0 = never
 align.wait : double          [s] on the ROS clock a slip may wait for the inputs' stamps to
                              reach it, and an input may be silent and still be waited for
-                             (default 30, see wheel.params; 0 = answer each slip on arrival)
+                             (default 0: answer each slip on arrival; see wheel.params)
 diagnostics_period : double  [s] period of /diagnostics on the ROS clock (read-only), default 1
 qos_depth : int              depth of the keep-last queues (read-only), default 100
 input_reliability : string   best_available (default) | reliable | best_effort (read-only)

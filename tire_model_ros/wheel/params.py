@@ -50,12 +50,16 @@ GLOBAL_PARAMS = (
 DEFAULT_TIMEOUTS = {"load": 1.0, "pressure": 10.0, "temperature": 10.0, "velocity": 1.0}
 MISSING_LOAD_POLICIES = ("nominal", "skip")
 #: How long [s, ROS clock] a slip may wait for its inputs' stamps to catch up (``align.wait``;
-#: 0 = answer on arrival). It is also how long an input may stay silent and still be waited
-#: for: a reliable topic that loses a sample delivers nothing after it until the writer's next
-#: heartbeat repairs it (every 3 s in Fast DDS by default). ``make demo``'s replay beside two
-#: CPU hogs: slips waited up to 3.1 s for their load, and the load topic went silent for up to
-#: 14.6 s while slips kept coming (5, 12 and 15 s of bound were needed in three runs).
-DEFAULT_ALIGN_WAIT = 30.0
+#: 0 = answer on arrival, the default: a simulator or a control loop gets its forces at once,
+#: and an input slower than the slips, pressure at 1 Hz, would hold each slip until its next
+#: value). A replay under load sets it (``make demo``: 30 s). It is also how long an input may
+#: stay silent and still be waited for: a reliable topic that loses a sample delivers nothing
+#: after it until the writer's next heartbeat repairs it (every 3 s in Fast DDS by default).
+#: ``make demo``'s replay beside two CPU hogs: slips waited up to 3.1 s for their load, and the
+#: load topic went silent for up to 14.6 s while slips kept coming (5, 12 and 15 s of bound
+#: were needed in three runs).
+DEFAULT_ALIGN_WAIT = 0.0
+REPLAY_ALIGN_WAIT = 30.0  # what make demo's replay beside two CPU hogs needed, with margin
 MAX_ALIGN_WAIT = 300.0
 
 _KEY_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(\.[A-Za-z][A-Za-z0-9_]*)*$")
