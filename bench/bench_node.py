@@ -24,8 +24,8 @@ machine shared with other work, normal scheduling leaves the tail to whoever els
 The highest rate "sustained" is the highest step reached from the lowest rate up with zero
 drops at every step and a publish rate of at least 95 % of the target.
 
-The node runs with its default ``align.wait`` (a slip is held until the load stamped with it
-has arrived): the load published first, each slip is answered on arrival (the usual path);
+The node holds slips (``align.wait`` 30 s: a slip is held until the load stamped with it has
+arrived): the load published first, each slip is answered on arrival (the usual path);
 ``--slip-first`` publishes each slip before its load, so that every slip is held and answered
 when its load arrives (the held path; latency then includes the load's delivery).
 
@@ -252,6 +252,7 @@ def server_command(kind: str, prefixes: list[str], args: argparse.Namespace) -> 
         sched += ["--server-cpus", ",".join(map(str, cpus))] if cpus else []
         return [sys.executable, __file__, *sched, "--echo", *prefixes]
     ros = ["--ros-args", "-p", f"wheels:=[{','.join(prefixes)}]", "-p", "timeout.load:=0.0"]
+    ros += ["-p", "align.wait:=30.0"]  # the hold's cost is part of the figure
     ros += ["-p", f"rt_priority:={args.rt_priority}", "-p", f"qos_depth:={args.depth}"]
     if cpus:
         ros += ["-p", f"cpus:=[{','.join(map(str, cpus))}]"]
