@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,6 +26,17 @@ def tyre() -> TireModel:
     return TireModel.from_file(DEFAULT_TIR)
 
 
+def fit_extend(d: Path, other: str, out: str) -> subprocess.CompletedProcess[str]:
+    """``tire-model fit d/rig --tir d/start.tir -o d/OUT --extend d/OTHER``, checked to exit 0."""
+    res = subprocess.run(
+        [*TOOL, "fit", str(d / "rig"), "--tir", str(d / "start.tir"), "-o", str(d / out),
+         "--extend", str(d / other)],
+        capture_output=True, text=True, timeout=FIT_TIMEOUT_S,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr[-3000:]
+    return res
+
+
 # ------------------------------------------------------------------ a small fused fit
 @pytest.fixture(scope="module")
 def fused(tyre, tmp_path_factory):
@@ -38,13 +50,7 @@ def fused(tyre, tmp_path_factory):
     zero = [f"PP{a}{i}" for a in "XY" for i in range(1, 5)]
     zero += [f"TT{a}{i}" for a in "XY" for i in range(1, 5)]
     write_tir(tyre.with_params(dict.fromkeys(zero, 0.0)).tir, d / "start.tir")
-    res = subprocess.run(
-        [*TOOL, "fit", str(d / "rig"), "--tir", str(d / "start.tir"), "-o", str(d / "out.tir"),
-         "--extend", str(d / "sim")],
-        capture_output=True, text=True, timeout=FIT_TIMEOUT_S,
-    )  # fmt: skip
-    assert res.returncode == 0, res.stderr[-3000:]
-    return d, res
+    return d, fit_extend(d, "sim", "out.tir")
 
 
 def test_fused_fit_names_the_difference_and_widens_the_ranges(fused):
@@ -109,12 +115,7 @@ def test_fe_table_imported_as_csv_extends_the_rig(fused):
     ):
         res = subprocess.run([*TOOL, *cmd], capture_output=True, text=True, timeout=300)
         assert res.returncode == 0, res.stderr
-    res = subprocess.run(
-        [*TOOL, "fit", str(d / "rig"), "--tir", str(d / "start.tir"), "-o", str(d / "fe.tir"),
-         "--extend", str(d / "fe")],
-        capture_output=True, text=True, timeout=FIT_TIMEOUT_S,
-    )  # fmt: skip
-    assert res.returncode == 0, res.stderr[-3000:]
+    res = fit_extend(d, "fe", "fe.tir")
     assert "the rig differs from it by: temperature" in res.stdout, res.stdout
     P = TireModel.from_file(d / "fe.tir").params
     assert P["PRESMIN"] <= 60e3 and P["TEMPMIN"] <= -10.0 and P["TEMPMAX"] >= 80.0

@@ -41,6 +41,24 @@ def stamped(msg, t_ns: int):
     return msg
 
 
+def load_msg(Fz: float, t_ns: int):
+    """A load message of ``Fz`` [N] stamped ``t_ns``."""
+    from geometry_msgs.msg import WrenchStamped
+
+    m = WrenchStamped()
+    m.wrench.force.z = Fz
+    return stamped(m, t_ns)
+
+
+def slip_msg(t_ns: int, kappa: float = 0.05, alpha: float = 0.0):
+    """A slip message (kappa, alpha [rad], no camber) stamped ``t_ns``."""
+    from geometry_msgs.msg import Vector3Stamped
+
+    s = Vector3Stamped()
+    s.vector.x, s.vector.y = kappa, alpha
+    return stamped(s, t_ns)
+
+
 def wrench_row(m) -> list[float]:
     f, t = m.wrench.force, m.wrench.torque
     return [f.x, f.y, f.z, t.x, t.y, t.z]
@@ -138,14 +156,10 @@ def sim(client):
         clock.publish(msg)
 
     def send_load(t_ns: int, Fz: float) -> None:
-        m = WrenchStamped()
-        m.wrench.force.z = Fz
-        load.publish(stamped(m, t_ns))
+        load.publish(load_msg(Fz, t_ns))
 
     def send_slip(t_ns: int, kappa: float = 0.05) -> int:
-        m = Vector3Stamped()
-        m.vector.x, m.vector.y = kappa, 0.02
-        slip.publish(stamped(m, t_ns))
+        slip.publish(slip_msg(t_ns, kappa, 0.02))
         return t_ns
 
     yield proc, tick, send_load, send_slip, forces, reliable
@@ -330,13 +344,9 @@ def test_best_effort_publishers_are_served(client, hostile):
     stamps = iter(range(1 * S, 2 * S, 1_000_000))
 
     def answered(Fz: float, pub) -> bool:
-        m = WrenchStamped()
-        m.wrench.force.z = Fz
         t = next(stamps)
-        pub.publish(stamped(m, t))
-        s = Vector3Stamped()
-        s.vector.x = 0.05
-        slip.publish(stamped(s, t))
+        pub.publish(load_msg(Fz, t))
+        slip.publish(slip_msg(t))
         got = forces.by_stamp()
         return any(m.wrench.force.z == Fz for m in got.values())
 
@@ -458,12 +468,8 @@ def test_malformed_payloads_on_every_input_are_counted_and_dropped(client, hosti
     def answered() -> bool:
         nonlocal t
         t += 1_000_000
-        m = WrenchStamped()
-        m.wrench.force.z = 4500.0
-        load.publish(stamped(m, t))
-        s = Vector3Stamped()
-        s.vector.x = 0.05
-        slip.publish(stamped(s, t))
+        load.publish(load_msg(4500.0, t))
+        slip.publish(slip_msg(t))
         return any(m.wrench.force.z == 4500.0 for m in forces.by_stamp().values())
 
     wait_for(answered, 30, "an answer after the malformed messages", interval=0.1)
@@ -678,15 +684,11 @@ def test_managed_node_through_its_transitions(client, model, tmp_path):
         t = [S]
 
         def send(n: int) -> list[int]:
-            m = WrenchStamped()
-            m.wrench.force.z = 4200.0
-            load.publish(stamped(m, t[0]))
+            load.publish(load_msg(4200.0, t[0]))
             out = []
             for _ in range(n):
                 t[0] += 1_000_000
-                s = Vector3Stamped()
-                s.vector.x, s.vector.y = 0.04, 0.03
-                slip.publish(stamped(s, t[0]))
+                slip.publish(slip_msg(t[0], 0.04, 0.03))
                 out.append(t[0])
             return out
 
@@ -741,14 +743,10 @@ def test_slips_held_at_sigterm_are_answered_or_counted(client):
     box = diag(client)
     client.wait_matched([slip, load], 90, proc)
     proc.wait_log("/term/forces: 1 subscriber(s) matched", 30)
-    m = WrenchStamped()
-    m.wrench.force.z = 3000.0
-    load.publish(stamped(m, S))
-    s = Vector3Stamped()
-    s.vector.x = 0.05
-    slip.publish(stamped(s, S))
+    load.publish(load_msg(3000.0, S))
+    slip.publish(slip_msg(S))
     forces.wait(S)  # answered: the load is arriving
-    slip.publish(stamped(s, 2 * S))  # its load never comes, and the bound is a minute
+    slip.publish(slip_msg(2 * S))  # its load never comes, and the bound is a minute
 
     def pending() -> bool:
         st = status(box, "tire_term: /term")

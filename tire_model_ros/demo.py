@@ -41,6 +41,7 @@ import numpy as np
 
 from tire_model_ros.delivery import PLAY
 from tire_model_ros.vocabulary import NS_PER_S
+from tire_model_ros.wheel.hold import HOLD_COUNTS
 from tire_model_ros.wheel.params import REPLAY_ALIGN_WAIT
 
 if TYPE_CHECKING:
@@ -414,8 +415,7 @@ def account_for_loss(prefixes: list[str], out_play: str, logs: Path) -> bool:
 
 def held_text(counts: dict[str, int]) -> str:
     """What the node's hold did (``align.wait``): slips that came before their inputs."""
-    c = {k: counts.get(k, 0) for k in ("held", "released_caught_up", "released_by_wait",
-                                       "released_by_overflow", "released_by_flush")}  # fmt: skip
+    c = {k: counts.get(k, 0) for k in HOLD_COUNTS}
     return (
         f"the node held {c['held']} slips until their inputs caught up: "
         f"{c['released_caught_up']} answered once they had, {c['released_by_wait']} after "
