@@ -91,7 +91,10 @@ def read_inputs(path: Path) -> tuple[dict[str, Array], npt.NDArray[np.int64]]:
     if bad:
         row, name = min(bad)  # the first line with a non-finite cell
         value = float(columns[name][row])
-        raise ValueError(f"{path}: line {lines[row]}: column {name!r}: '{value}' is not finite")
+        what = " (the cell is empty or NaN)" if np.isnan(value) else ""
+        raise ValueError(
+            f"{path}: line {lines[row]}: column {name!r}: '{value}' is not finite{what}"
+        )
     return columns, lines
 
 
