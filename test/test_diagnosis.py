@@ -133,6 +133,29 @@ def test_delay_is_told_from_relaxation(model):
     assert p["tau_delay_s"] + p["tau_filter_s"] == pytest.approx(0.02, abs=0.005)
 
 
+def test_delay_models_the_load_on_the_forces_clock_only_where_the_load_moves(model):
+    """A wheel-force transducer's Fz is late with its Fx and Fy, a rig's commanded load is
+    not: where the load moves within a delay's span both models are tried, and the one with
+    the load on the forces' clock leaves the recorded load as it is; on a rig's held load the
+    two are the same model, and only one is tried."""
+    from tire_model_ros.diagnosis.effects.transient import Delay
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"delay": True})
+    w = wheels[0]
+    held = make_context(prepare_wheel(w, model, np.random.default_rng(0)), model)
+    assert [m.load_with_forces for m in Delay.propose(held)] == [False]
+    moving = dataclasses.replace(w, Fz=w.Fz * (1.0 + 0.1 * np.sin(2 * np.pi * 2.0 * w.t)))
+    ctx = make_context(prepare_wheel(moving, model, np.random.default_rng(0)), model)
+    late, with_load = Delay.propose(ctx)
+    x = np.array([0.03, 0.0])
+    for m, load_shifted in ((late, True), (with_load, False)):
+        inp = dict(ctx.wheel.inputs)
+        m.inputs(x, ctx, inp)
+        assert (not np.array_equal(inp["Fz"], ctx.wheel.x("Fz"))) == load_shifted
+        assert not np.array_equal(inp["alpha"], ctx.wheel.x("alpha"))
+
+
 def test_friction_step_is_named_drift_and_located(model):
     """A belt friction step: drift, in the step form, at the rig's time; model error gone."""
     wheels, truth = _session(model, {"mu_step": {"ratio": 0.93}})

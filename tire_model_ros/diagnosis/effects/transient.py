@@ -104,12 +104,24 @@ class Relaxation(EffectModel):
 
 class Delay(EffectModel):
     """The forces recorded late against the slip: a pure delay and the DAQ's first-order
-    filter (both >= 0: a force that leads its slip is not a delay)."""
+    filter (both >= 0: a force that leads its slip is not a delay).
+
+    Which channels share the forces' clock is the instrumentation's: a rig's commanded load is
+    on time, a wheel-force transducer's own Fz is late with its Fx and Fy. Where the load moves
+    within a delay's span (a car's load transfer), the two are told apart by a model each;
+    elsewhere they predict the same and only the first is tried.
+    """
 
     word = "time_delay"
-    label = "forces recorded late: pure delay and first-order filter"
 
-    def __init__(self, ctx: Context):
+    def __init__(self, ctx: Context, load_with_forces: bool = False):
+        self.load_with_forces = load_with_forces
+        self.label = (
+            "forces and their load recorded late against the slip: pure delay and first-order "
+            "filter"
+            if load_with_forces
+            else "forces recorded late: pure delay and first-order filter"
+        )
         super().__init__(
             [
                 Param("tau_delay_s", 0.01, 0.0, 0.3, 0.01),
@@ -119,14 +131,29 @@ class Delay(EffectModel):
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
-        return [cls(ctx)] if ctx.moving["x"] or ctx.moving["y"] else []
+        if not (ctx.moving["x"] or ctx.moving["y"]):
+            return []
+        out: list[EffectModel] = [cls(ctx)]
+        return out + ([cls(ctx, True)] if _load_moves(ctx) else [])
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         t = ctx.wheel.t
-        for key in ("kappa", "alpha", "gamma", "Fz"):
+        for key in ("kappa", "alpha", "gamma") + (() if self.load_with_forces else ("Fz",)):
             v = inp[key]
             assert v is not None
             inp[key] = lowpass(delayed(v, t, float(x[0])), t, float(x[1]))
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return None  # an artefact of the recording, not of the tyre
+
+
+LOAD_MOVES_SPAN_S = 0.05  # a delay of tens of ms (PHYSICS.md)
+LOAD_MOVES_SHARE = 0.01  # of FNOMIN, at the 90th percentile of the load's change over the span
+
+
+def _load_moves(ctx: Context) -> bool:
+    """Whether the recorded load changes within a delay's span often enough that delaying it
+    or not changes the model: on a car, load transfer; on a rig, the load held per sweep."""
+    t, Fz = ctx.wheel.t, ctx.wheel.x("Fz")
+    change = np.abs(np.interp(t - LOAD_MOVES_SPAN_S, t, Fz) - Fz)
+    return bool(np.percentile(change, 90) > LOAD_MOVES_SHARE * ctx.base["FNOMIN"])
