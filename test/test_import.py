@@ -370,3 +370,14 @@ def test_bad_csv_files(tmp_path):
         (tmp_path / name).write_text(text)
         error = _error_of(tmp_path / name)
         assert part in error, (part, error)
+
+
+def test_info_reads_a_measurement_file(tmp_path):
+    """info on a TTC file: the bag import would write, named by the file; its report on stderr."""
+    write_ttc_dat(tmp_path / "run.dat", ttc_run(), TTC_METRIC)
+    r = _tm("info", "run.dat", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("bag:       run.dat (ttc file, imported)\n"), r.stdout
+    assert f"/rig/wheel: {N_ROWS} samples" in r.stdout and "/rig/wheel/temperature" in r.stdout
+    assert "import: read run.dat (ttc)" in r.stderr
+    _one_line_error(_tm("info", "run.dat", "--salvage", cwd=tmp_path), "run.dat: a measurement")
