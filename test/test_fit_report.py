@@ -4,6 +4,7 @@ start model already explains the data written with a note (exit 0) instead of re
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import subprocess
@@ -13,7 +14,7 @@ import pytest
 from conftest import DEFAULT_TIR, TOOL
 
 from tire_model_ros.fit import FitOptions, fit_recording
-from tire_model_ros.fit.report import figures
+from tire_model_ros.fit.report import figures, fit_metrics, markdown
 from tire_model_ros.model import TireModel
 from tire_model_ros.rig import simulate_session, write_session
 
@@ -66,6 +67,26 @@ def test_measured_against_model_per_condition(heated):
     by = heated.report["metrics"]["by_condition"]
     assert [round(r["level"], 1) for r in by["inclination"]] == [0.0, 2.0, 4.0]
     assert {r["unit"] for r in by["inclination"]} == {"deg"}
+
+
+def test_a_channel_not_measured_has_no_rows_or_panels(heated):
+    """A bag imported from a TTC file carries My as NaN (the TTC measures none): the report
+    leaves it out instead of drawing an empty panel; levels at the tables' resolution."""
+    import matplotlib.pyplot as plt
+
+    wheels = [dataclasses.replace(s, My=np.full(len(s), np.nan)) for s in heated.wheels]
+    result = dataclasses.replace(heated, wheels=wheels, report=dict(heated.report))
+    result.report["metrics"] = fit_metrics(result)
+    assert "My" not in result.report["metrics"]["channels"], result.report["metrics"]["channels"]
+    figs = figures(result)
+    assert "fit_My.png" not in figs
+    residual = figs["fit_residual_time.png"]
+    assert [ax.get_ylabel().split()[0] for ax in residual.axes] == ["Fx", "Fy", "Mx", "Mz"]
+    plt.close("all")
+    text = markdown(result)
+    assert "| My |" not in text and "My [N m]" not in text
+    for g in ("0.00", "2.00", "4.00"):
+        assert f"| {g} deg | Fy |" in text, text
 
 
 def test_residuals_are_measured_minus_model(heated):
