@@ -119,3 +119,23 @@ def test_start_model_that_explains_the_data_is_written_with_a_note(tmp_path):
     assert all(got[k] == want[k] for k in ("PDY1", "PKY1", "PEY1", "PCY1"))
     report = (tmp_path / "out_fit_report" / "fit_report.md").read_text()
     assert "**Note:** no stage improved" in report
+
+
+def test_fit_and_diagnosis_share_the_residual_sign():
+    """Measured Fy 300 N above the model: +300 in the fit report's bias and in the diagnosis'
+    residual at zero slip (measured - model in both)."""
+    from tire_model_ros.diagnosis import diagnose
+
+    wheels, _ = simulate_session(
+        TIR, "lateral_sweeps", rate_hz=25.0, seed=4, omit=["temperature"],
+        programme_options={"rate_scale": 2.0},
+    )  # fmt: skip
+    wheels = [dataclasses.replace(s, Fy=s.Fy + 300.0) for s in wheels]
+    start = TireModel.from_file(TIR)
+    fit = fit_recording(wheels, start, FitOptions(progress=False, stages=["Fy0"]))
+    assert fit.report["metrics"]["overall"]["fitted"]["before"]["Fy"]["bias"] == pytest.approx(
+        300.0, abs=30.0
+    )
+    diag = diagnose(wheels, start)
+    summary = diag.wheels[wheels[0].prefix].summary["Fy"]
+    assert summary["zero_slip_mean"] == pytest.approx(300.0, abs=30.0), summary
