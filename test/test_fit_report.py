@@ -4,6 +4,7 @@ start model already explains the data written with a note (exit 0) instead of re
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import subprocess
@@ -13,7 +14,7 @@ import pytest
 from conftest import DEFAULT_TIR, TOOL
 
 from tire_model_ros.fit import FitOptions, fit_recording
-from tire_model_ros.fit.report import figures
+from tire_model_ros.fit.report import figures, fit_metrics, markdown
 from tire_model_ros.model import TireModel
 from tire_model_ros.rig import simulate_session, write_session
 
@@ -68,6 +69,26 @@ def test_measured_against_model_per_condition(heated):
     assert {r["unit"] for r in by["inclination"]} == {"deg"}
 
 
+def test_a_channel_not_measured_has_no_rows_or_panels(heated):
+    """A bag imported from a TTC file carries My as NaN (the TTC measures none): the report
+    leaves it out instead of drawing an empty panel; levels at the tables' resolution."""
+    import matplotlib.pyplot as plt
+
+    wheels = [dataclasses.replace(s, My=np.full(len(s), np.nan)) for s in heated.wheels]
+    result = dataclasses.replace(heated, wheels=wheels, report=dict(heated.report))
+    result.report["metrics"] = fit_metrics(result)
+    assert "My" not in result.report["metrics"]["channels"], result.report["metrics"]["channels"]
+    figs = figures(result)
+    assert "fit_My.png" not in figs
+    residual = figs["fit_residual_time.png"]
+    assert [ax.get_ylabel().split()[0] for ax in residual.axes] == ["Fx", "Fy", "Mx", "Mz"]
+    plt.close("all")
+    text = markdown(result)
+    assert "| My |" not in text and "My [N m]" not in text
+    for g in ("0.00", "2.00", "4.00"):
+        assert f"| {g} deg | Fy |" in text, text
+
+
 def test_residuals_are_measured_minus_model(heated):
     s = heated.wheels[0]
     m = heated.train_masks[0]
@@ -98,3 +119,23 @@ def test_start_model_that_explains_the_data_is_written_with_a_note(tmp_path):
     assert all(got[k] == want[k] for k in ("PDY1", "PKY1", "PEY1", "PCY1"))
     report = (tmp_path / "out_fit_report" / "fit_report.md").read_text()
     assert "**Note:** no stage improved" in report
+
+
+def test_fit_and_diagnosis_share_the_residual_sign():
+    """Measured Fy 300 N above the model: +300 in the fit report's bias and in the diagnosis'
+    residual at zero slip (measured - model in both)."""
+    from tire_model_ros.diagnosis import diagnose
+
+    wheels, _ = simulate_session(
+        TIR, "lateral_sweeps", rate_hz=25.0, seed=4, omit=["temperature"],
+        programme_options={"rate_scale": 2.0},
+    )  # fmt: skip
+    wheels = [dataclasses.replace(s, Fy=s.Fy + 300.0) for s in wheels]
+    start = TireModel.from_file(TIR)
+    fit = fit_recording(wheels, start, FitOptions(progress=False, stages=["Fy0"]))
+    assert fit.report["metrics"]["overall"]["fitted"]["before"]["Fy"]["bias"] == pytest.approx(
+        300.0, abs=30.0
+    )
+    diag = diagnose(wheels, start)
+    summary = diag.wheels[wheels[0].prefix].summary["Fy"]
+    assert summary["zero_slip_mean"] == pytest.approx(300.0, abs=30.0), summary

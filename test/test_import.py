@@ -151,6 +151,11 @@ def test_nan_rows_dropped_and_counted(tmp_path):
     assert read_recording(tmp_path / "bag2")["/rig/wheel"].T is None
 
 
+def _first(bad: np.ndarray) -> int:
+    """The 1-based row of the first True."""
+    return int(np.flatnonzero(bad)[0]) + 1
+
+
 def _one_line_error(r: subprocess.CompletedProcess[str], *parts: str) -> None:
     assert r.returncode == 1, r.stdout + r.stderr
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
@@ -182,6 +187,14 @@ def test_bad_ttc_files_are_one_line_errors(tmp_path):
         ("time.mat", back, TTC_METRIC, ("row 11: time ET",)),
         ("nan.mat", {**good, "TSTC": np.full(N_ROWS, np.nan)}, TTC_METRIC,
          ("channel TSTC: every value is NaN (leave it out with --omit temperature)",)),
+        ("nofz.dat", {k: v for k, v in good.items() if k != "FZ"}, TTC_METRIC,
+         ("nofz.dat: line 2: missing channel FZ",)),
+        # a wrong unit that is a unit: values no tyre can have, the first one named
+        ("rad.mat", good, {**TTC_METRIC, "SA": "rad"},
+         (f"row {_first(np.abs(good['SA']) > math.pi / 2)}: channel SA: a slip angle of ",
+          "deg (ISO-W, converted) is outside -90..90 deg: is the file's unit of SA right?")),
+        ("pa.dat", {**good, "P": good["P"] * 1e3}, TTC_METRIC,
+         ("line 4: channel P: a gauge inflation pressure of 8", "is the file's unit of P right?")),
     ]  # fmt: skip
     for name, data, units, parts in cases:
         src = tmp_path / name
@@ -349,8 +362,22 @@ def test_bad_csv_files(tmp_path):
         "nan.csv": (head + "".join(r.rsplit(",", 1)[0] + ",nan\n" for r in rows),
                     "channel Fy: every value is NaN"),
         "short.csv": (head + "".join(rows[:3]) + "0.5,4000,0\n", "line 5: column 'alpha' missing"),
+        "deg.csv": (head + "".join(row.format(t=0.01 * i, a=2.0 * i, fy=0) for i in range(5)),
+                    "line 3: channel alpha: a slip angle of 114.592 deg (ISO-W, converted) is "
+                    "outside -90..90 deg"),
     }  # fmt: skip
     for name, (text, part) in cases.items():
         (tmp_path / name).write_text(text)
         error = _error_of(tmp_path / name)
         assert part in error, (part, error)
+
+
+def test_info_reads_a_measurement_file(tmp_path):
+    """info on a TTC file: the bag import would write, named by the file; its report on stderr."""
+    write_ttc_dat(tmp_path / "run.dat", ttc_run(), TTC_METRIC)
+    r = _tm("info", "run.dat", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("bag:       run.dat (ttc file, imported)\n"), r.stdout
+    assert f"/rig/wheel: {N_ROWS} samples" in r.stdout and "/rig/wheel/temperature" in r.stdout
+    assert "import: read run.dat (ttc)" in r.stderr
+    _one_line_error(_tm("info", "run.dat", "--salvage", cwd=tmp_path), "run.dat: a measurement")

@@ -1,7 +1,9 @@
 """``tire-model info BAG``: wheels, topics (types, counts, rates), duration, channel ranges.
 
 With ``--salvage`` a damaged or unclosed bag is read as far as it can be trusted, and
-``-o OUT`` writes what was recovered as a new, whole bag.
+``-o OUT`` writes what was recovered as a new, whole bag. A measurement file (TTC, TYDEX,
+CSV) is summarised as the bag ``tire-model import`` would write of it (imported on the fly,
+as ``fit`` and ``diagnose`` open it; the import report on stderr).
 """
 
 from __future__ import annotations
@@ -10,14 +12,24 @@ import argparse
 import json
 import os
 import sys
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tire_model_ros.cli.bagarg import add_salvage_argument, print_salvage_report
+
+if TYPE_CHECKING:
+    from tire_model_ros.recording import RawBag
 
 HELP = "wheels, topics, duration and ranges of a recording"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("bag", help="rosbag2 folder, .mcap or .db3 file")
+    parser.add_argument(
+        "bag",
+        help="rosbag2 folder, .mcap or .db3 file, or a measurement file (.mat/.dat TTC, .tdx "
+        "TYDEX, .csv) imported on the fly",
+    )
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     add_salvage_argument(parser)
     parser.add_argument(
@@ -37,10 +49,20 @@ def run(args: argparse.Namespace) -> int:
 
     if args.output and not args.salvage:
         raise ValueError("-o/--output writes what --salvage recovered: give --salvage too")
-    bag = read_raw(args.bag, salvage=args.salvage)
+    from tire_model_ros.importers import format_of
+
+    if format_of(args.bag) is not None:
+        if args.salvage:
+            raise ValueError(f"{args.bag}: a measurement file, not a bag: nothing to salvage")
+        bag = _imported(args.bag)
+    else:
+        bag = read_raw(args.bag, salvage=args.salvage)
     if args.salvage:
         print_salvage_report(bag)
     info = summarize_raw(bag)
+    if bag.path != Path(args.bag):
+        fmt = format_of(args.bag)
+        info.update(path=args.bag, storage=f"{fmt.name if fmt else '?'} file, imported")
     text = json.dumps(info, indent=2) if args.json else format_summary(info)
     try:
         print(text)
@@ -51,3 +73,14 @@ def run(args: argparse.Namespace) -> int:
         write_raw(bag, args.output, overwrite=args.force)
         print(f"wrote {args.output}: {bag.messages_read} messages recovered", file=sys.stderr)
     return 0
+
+
+def _imported(path: str) -> RawBag:
+    """The raw bag ``tire-model import`` would write of a measurement file (written to a
+    temporary folder and read back whole, so the summary is the bag's)."""
+    from tire_model_ros.recording import open_recording, read_raw, write_recording
+
+    wheels = open_recording(path)
+    with tempfile.TemporaryDirectory(prefix="tire-model-info-") as tmp:
+        write_recording(Path(tmp) / "bag", list(wheels.values()))
+        return read_raw(Path(tmp) / "bag")

@@ -55,6 +55,9 @@ CONDITIONS = {
     "pressure": ("p", "kPa", 1e-3),
     "inclination": ("gamma", "deg", 180 / math.pi),
 }
+#: decimals of a condition level in the tables, by its unit: a level is the median of the
+#: measured channel, and an inclination of 1e-05 deg is 0.00 deg at the rig's resolution
+LEVEL_DECIMALS = {"N": 0, "kPa": 1, "deg": 2, "degC": 0}
 TEMPERATURE_BIN_C = 10.0
 MAX_PANELS = 12  # conditions drawn per channel (those with the most samples)
 MAX_DOTS = 1500  # measured samples drawn per load curve
@@ -78,6 +81,17 @@ def channel_metrics(measured: Floats, predicted: Floats) -> dict[str, float]:
         "nrmse": rmse / span if span > 0 else math.nan,
         "r2": 1.0 - float(np.sum(d * d)) / sst if sst > 0 else math.nan,
     }
+
+
+def measured_channels(wheels: Sequence[WheelSeries]) -> list[str]:
+    """The force channels with a finite measured value in some wheel: a bag's measured_forces
+    carry all six, NaN where nothing was measured (a TTC run's My), and such a channel gets
+    no empty table rows or panels."""
+    return [
+        c
+        for c in FORCE_CHANNELS
+        if any(getattr(s, c) is not None and np.isfinite(getattr(s, c)).any() for s in wheels)
+    ]
 
 
 def _predict(model: TireModel, wheels: Sequence[WheelSeries]) -> list[MFOutput]:
@@ -133,7 +147,7 @@ def fit_metrics(result: FitResult) -> dict[str, Any]:
         "fitted": np.concatenate(result.train_masks),
         "heldout": np.concatenate(result.heldout_masks),
     }
-    channels = [c for c in FORCE_CHANNELS if any(getattr(s, c) is not None for s in wheels)]
+    channels = measured_channels(wheels)
     measured = {c: _stack([getattr(s, c) for s in wheels], lengths) for c in channels}
     pred = {
         k: {c: np.concatenate([np.asarray(getattr(o, c)) for o in outs]) for c in channels}
@@ -178,6 +192,12 @@ def _fmt(x: float | None, digits: int = 4) -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
     return f"{x:.{digits}g}"
+
+
+def level_text(level: float, unit: str) -> str:
+    """A condition level with its unit at the tables' resolution, never "-0"."""
+    digits = LEVEL_DECIMALS.get(unit, 3)
+    return f"{round(level, digits) + 0.0:.{digits}f} {unit}"
 
 
 def markdown(result: FitResult) -> str:
@@ -260,7 +280,7 @@ def markdown(result: FitResult) -> str:
             for c in met["channels"]:
                 h, f = row["heldout"], row["fitted"]
                 lines.append(
-                    f"| {_fmt(row['level'], 5)} {row['unit']} | {c} | "
+                    f"| {level_text(row['level'], row['unit'])} | {c} | "
                     f"{_fmt(h['before'][c]['rmse'])} -> {_fmt(h['after'][c]['rmse'])} | "
                     f"{_fmt(h['after'][c]['nrmse'], 3)} | "
                     f"{_fmt(f['before'][c]['rmse'])} -> {_fmt(f['after'][c]['rmse'])} | "

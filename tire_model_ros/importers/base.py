@@ -8,7 +8,8 @@ names of :class:`~tire_model_ros.recording.series.WheelSeries` (``t`` [s], ``kap
 gauge], ``T`` [degC], ``Vx`` [m/s]), each with the file's own name for messages.
 :func:`to_series` then does what no format may do differently: leave out the ``--omit``
 channels, refuse a channel that is all NaN, drop (and count) the rows with NaN, refuse time
-that does not increase, and check the signs the conversion gave.
+that does not increase and values no tyre can have (a unit the file mislabels), and check the
+signs the conversion gave.
 """
 
 from __future__ import annotations
@@ -45,6 +46,33 @@ SIGN_ALPHA_RAD = (math.radians(0.3), math.radians(4.0))
 SIGN_KAPPA = (0.005, 0.05)
 MIN_SIGN_SAMPLES = 20
 MIN_SIGN_T = 5.0  # the slope's t statistic below which a sign is not judged
+
+
+@dataclass(frozen=True)
+class Bound:
+    """The values a channel can physically hold [SI], shown to the user in ``unit``
+    (``shown = SI * factor``); a value outside was read in a unit the file does not use."""
+
+    what: str
+    low: float
+    high: float
+    unit: str
+    factor: float = 1.0
+
+
+DEG = 180.0 / math.pi
+#: Beyond these no measured tyre goes: a value outside means the file's unit is wrong (slip
+#: angle in rad labelled deg, pressure in Pa labelled kPa, a load in N labelled kN, ...).
+PHYSICAL: dict[str, Bound] = {
+    "alpha": Bound("a slip angle", -math.pi / 2, math.pi / 2, "deg", DEG),
+    "gamma": Bound("an inclination angle", -math.pi / 2, math.pi / 2, "deg", DEG),
+    "Fz": Bound("a wheel load", -1e6, 1e6, "N"),
+    "Fx": Bound("a tyre force", -1e6, 1e6, "N"),
+    "Fy": Bound("a tyre force", -1e6, 1e6, "N"),
+    "p": Bound("a gauge inflation pressure", -101325.0, 1e7, "kPa", 1e-3),
+    "T": Bound("a tyre temperature", -273.15, 1000.0, "degC"),
+    "Vx": Bound("a test speed", -350.0, 350.0, "m/s"),
+}
 
 
 class MeasurementError(ValueError):
@@ -152,6 +180,26 @@ def _check_time(cols: Columns, keep: npt.NDArray[np.bool_]) -> None:
         )
 
 
+def _check_physical(cols: Columns, keep: npt.NDArray[np.bool_], used: Sequence[str]) -> None:
+    """Refuse the first value (in file order) no tyre can have: its unit must be wrong."""
+    rows = np.flatnonzero(keep)
+    for c in used:
+        bound = PHYSICAL.get(c)
+        if bound is None:
+            continue
+        x = cols.channels[c][rows]
+        bad = np.flatnonzero((x < bound.low) | (x > bound.high))
+        if len(bad):
+            i = int(bad[0])
+            name = cols.names.get(c, c)
+            raise cols.error(
+                f"{cols.where(int(rows[i]))}: channel {name}: {bound.what} of "
+                f"{x[i] * bound.factor:.6g} {bound.unit} (ISO-W, converted) is outside "
+                f"{bound.low * bound.factor:.6g}..{bound.high * bound.factor:.6g} {bound.unit}: "
+                f"is the file's unit of {name} right?"
+            )
+
+
 def _slope(x: Floats, y: Floats) -> tuple[float, float]:
     """Least-squares slope of y on x (with intercept) and its t statistic (slope / its
     standard error; about N(0, 1) when y does not follow x)."""
@@ -235,7 +283,8 @@ def to_series(cols: Columns, *, omit: Sequence[str] = (), prefix: str = DEFAULT_
     Raises
     ------
     MeasurementError
-        A missing channel, a channel that is all NaN, time that does not increase, no row left.
+        A missing channel, a channel that is all NaN, time that does not increase, no row left,
+        a value outside what a tyre can have (``PHYSICAL``: the file's unit is wrong).
     """
     left_out = omitted_channels(omit)
     used = [c for c in CHANNELS if c in cols.channels and c not in left_out]
@@ -244,6 +293,7 @@ def to_series(cols: Columns, *, omit: Sequence[str] = (), prefix: str = DEFAULT_
     if not keep.any():
         raise cols.error("no row without NaN left")
     _check_time(cols, keep)
+    _check_physical(cols, keep, used)
     t = cols.t[keep]
     report = ImportReport()
     if t[0] < 0:  # stamps of a recording start at or after 0

@@ -48,6 +48,7 @@ CHANNELS: dict[str, tuple[str, str, float]] = {
     "TSTC": ("T", "temperature", 1.0),
 }
 REQUIRED = ("ET", "SA", "IA", "FZ", "FX", "FY")
+MIN_NAMES_KNOWN = 3  # TTC names beside ET that make a .dat line the line of channel names
 #: Units the exporter writes (the consortium's SI/metric set).
 WRITE_UNITS = {"ET": "s", "V": "kph", "SA": "deg", "IA": "deg", "P": "kPa", "FX": "N", "FY": "N",
                "FZ": "N", "MX": "N-m", "MZ": "N-m", "TSTC": "deg C", "SL": "none"}  # fmt: skip
@@ -105,19 +106,24 @@ def _split(line: str) -> list[str]:
     return line.rstrip("\r\n").split("\t") if "\t" in line else line.split()
 
 
-def _read_dat(path: Path) -> tuple[dict[str, Floats], dict[str, str], np.ndarray]:
+def _is_names_line(line: str) -> bool:
+    """A .dat line of channel names: ET and at least ``MIN_NAMES_KNOWN`` other TTC names (a
+    file missing one required channel is still found, and that channel named)."""
+    fields = {f.strip() for f in _split(line)}
+    return "ET" in fields and len(fields & set(CHANNELS)) > MIN_NAMES_KNOWN
+
+
+def _read_dat(path: Path) -> tuple[dict[str, Floats], dict[str, str], np.ndarray, int]:
+    """Channels, units, each row's line number and the line number of the names."""
     try:
         text = path.read_text(encoding="utf-8-sig", errors="strict")
     except UnicodeDecodeError as exc:
         raise MeasurementError(f"{path}: not a text file ({exc.reason})") from None
     lines = text.splitlines()
-    head = next(
-        (i for i, ln in enumerate(lines[:20]) if {"ET", "FZ"} <= {f.strip() for f in _split(ln)}),
-        None,
-    )
+    head = next((i for i, ln in enumerate(lines[:20]) if _is_names_line(ln)), None)
     if head is None or head + 1 >= len(lines):
         raise MeasurementError(
-            f"{path}: no line of TTC channel names (with ET and FZ) followed by units "
+            f"{path}: no line of TTC channel names (ET, SA, FZ, ...) followed by units "
             "in the first 20 lines"
         )
     names = [f.strip() for f in _split(lines[head])]
@@ -129,7 +135,8 @@ def _read_dat(path: Path) -> tuple[dict[str, Floats], dict[str, str], np.ndarray
     rows = [(i + 1, _split(ln)) for i, ln in enumerate(lines) if i > head + 1 and ln.strip()]
     data = parse_rows(path, rows, len(names))
     raw = {n: data[:, j] for j, n in enumerate(names)}
-    return raw, dict(zip(names, units, strict=True)), np.array([r[0] for r in rows], np.int64)
+    rows_at = np.array([r[0] for r in rows], np.int64)
+    return raw, dict(zip(names, units, strict=True)), rows_at, head + 1
 
 
 class TtcFormat:
@@ -141,18 +148,19 @@ class TtcFormat:
 
     def read(self, path: Path) -> Columns:
         """The file's channels in SI units and ISO-W axes."""
-        lines = None
+        lines, at = None, ""
         if path.suffix.lower() == ".mat":
             raw, units = _read_mat(path)
         else:
-            raw, units, lines = _read_dat(path)
+            raw, units, lines, names_line = _read_dat(path)
+            at = f"line {names_line}: "
         for name in REQUIRED:
             if name not in raw:
-                raise MeasurementError(f"{path}: missing channel {name}")
+                raise MeasurementError(f"{path}: {at}missing channel {name}")
         notes = []
         if "SL" not in raw:
             if "SR" not in raw:
-                raise MeasurementError(f"{path}: missing channel SL (slip ratio; SR neither)")
+                raise MeasurementError(f"{path}: {at}missing channel SL (slip ratio; SR neither)")
             notes.append("no SL channel: slip ratio kappa from SR (the rig's control slip)")
         cols = columns_by_name(path, self.name, raw, units, CHANNELS, lines=lines, time="ET")
         cols.notes += notes
