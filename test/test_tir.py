@@ -381,6 +381,9 @@ N_ROLLING = sum(ln.startswith(("[ROLLING", "QSY")) for ln in REF_LINES)
 TRUST_CASES = [
     ("typo_section", _replace("[LATERAL_COEFFICIENTS]", "[LATERAL_COEFICIENTS]"),
      T["[LATERAL_COEFFICIENTS]"] + 1, "PCY1", "unknown section [LATERAL_COEFICIENTS]"),
+    ("hyphen_section", _replace("[LATERAL_COEFFICIENTS]", "[LATERAL-COEFFICIENTS]"),
+     T["[LATERAL_COEFFICIENTS]"], None,
+     "malformed section header '[LATERAL-COEFFICIENTS]': a mistyped [LATERAL_COEFFICIENTS]?"),
     ("near_miss", _append("[ALIGNNG_COEFFICIENTS]"), len(REF_LINES) + 1,
      "[ALIGNNG_COEFFICIENTS]", "a mistyped [ALIGNING_COEFFICIENTS]"),
     ("missing_key", _drop("PDY2"), T["[LATERAL_COEFFICIENTS]"], "PDY2", "needed by MF 6.1"),
@@ -515,7 +518,9 @@ def test_required_keys_and_bad_values_are_refused_even_when_lenient(tmp_path):
     for name, edit, word in [("nofnomin", _drop("FNOMIN"), "FNOMIN"),
                              ("zero", _replace("PCY1", "PCY1 = 0"), "PCY1"),
                              ("fz", _replace("FZMIN", "FZMIN = 20000"), "FZMAX"),
-                             ("qsx1", _replace("QSX1", "QSX1 = 1e308"), "QSX1")]:  # fmt: skip
+                             ("qsx1", _replace("QSX1", "QSX1 = 1e308"), "QSX1"),
+                             ("hyphen", _replace("[LATERAL_C", "[LATERAL-COEFFICIENTS]"),
+                              r"malformed section header '\[LATERAL-COEFFICIENTS\]'")]:  # fmt: skip
         with pytest.raises(TirError, match=rf"{name}\.tir: line \d+: {word}: "):
             read_tir(_mangled(tmp_path, f"{name}.tir", edit), lenient=True)
 
