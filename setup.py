@@ -109,10 +109,11 @@ setup(
     python_requires=">=3.11",
     entry_points={
         "console_scripts": [
-            "tire_model_node = tire_model_ros.ros.node:main",
-            "tire-model-node = tire_model_ros.ros.node:main",
-            "tire_model_lifecycle_node = tire_model_ros.ros.lifecycle:main",
-            "tire-model-lifecycle-node = tire_model_ros.ros.lifecycle:main",
+            # through tire_model_ros.ros: without ROS they say so instead of a traceback
+            "tire_model_node = tire_model_ros.ros:node_main",
+            "tire-model-node = tire_model_ros.ros:node_main",
+            "tire_model_lifecycle_node = tire_model_ros.ros:lifecycle_main",
+            "tire-model-lifecycle-node = tire_model_ros.ros:lifecycle_main",
             "tire-model = tire_model_ros.cli:main",
         ],
     },

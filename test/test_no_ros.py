@@ -8,12 +8,13 @@ there as it does on a machine without ROS.
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from conftest import DEFAULT_TIR, TOOL
+from conftest import DEFAULT_TIR, ROOT, TOOL
 
 BLOCKER = '''
 import sys
@@ -102,3 +103,31 @@ def test_ros_commands_say_they_need_ros(
     assert done.returncode == 1, done.stderr
     assert f"tire-model {command} needs ROS 2 Jazzy (rclpy)" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
+
+
+#: The console scripts that start a node, and the function each runs, as setup.py declares them.
+NODE_SCRIPTS = re.findall(
+    r'"(tire[-_]model[-_][\w-]*node) = ([\w.]+):(\w+)"', (ROOT / "setup.py").read_text()
+)
+
+
+@pytest.mark.parametrize(("script", "module", "function"), NODE_SCRIPTS)
+def test_node_scripts_say_they_need_ros(
+    no_ros_env: dict[str, str], tmp_path: Path, script: str, module: str, function: str
+) -> None:
+    """What the installed script runs (setup.py's entry point) fails in one line, no traceback."""
+    run = f"import sys, {module} as m; sys.exit(m.{function}())"
+    done = _run([sys.executable, "-c", run], no_ros_env, tmp_path)
+    assert done.returncode == 1, done.stderr
+    assert "needs ROS 2 Jazzy (rclpy), which cannot be imported here" in done.stderr
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr, done.stderr
+
+
+def test_every_node_script_is_checked() -> None:
+    names = {s for s, _, _ in NODE_SCRIPTS}
+    assert names == {
+        "tire_model_node",
+        "tire-model-node",
+        "tire_model_lifecycle_node",
+        "tire-model-lifecycle-node",
+    }

@@ -489,13 +489,15 @@ def test_switch_tir_file_and_bad_file(client, node1, tmp_path):
 
 
 def test_lenient_reads_what_strict_refuses(client, node1, tmp_path):
-    _, wheel = node1
+    proc, wheel = node1
     cut = tmp_path / "no_pky4.tir"
     cut.write_text(re.sub(r"^PKY4\s*=.*\n", "", DEFAULT_TIR.read_text(), flags=re.M))
     res = client.set_parameters(N1, {"tir_file": str(cut)})
     assert not res[0].successful and "PKY4" in res[0].reason, res[0].reason
     res = client.set_parameters(N1, {"lenient": True, "tir_file": str(cut)}, atomically=True)
     assert res.successful, res.reason
+    proc.wait_log("lenient: ", 10)  # the node lists what it filled
+    assert re.search(r"lenient: .*no_pky4\.tir: line \d+: .*PKY4=2\b", proc.log()), proc.log()
     try:
         model = TireModel.from_file(cut, lenient=True)
         assert model.params["PKY4"] == 2.0  # the documented default
@@ -535,10 +537,20 @@ def test_edit_file_and_reload(client, node1, tir_copy):
     assert not np.allclose(before, after, rtol=1e-3)
     assert client.get_parameters(N1, ["PDY1", "PCX1"]) == {"PDY1": 0.7, "PCX1": 1.5}
 
-    tir_copy.write_text(tir_copy.read_text().replace("[LATERAL_COEFFICIENTS]", "[LATERAL\n"))
+    whole = tir_copy.read_bytes()
+    tir_copy.write_text(whole.decode().replace("[LATERAL_COEFFICIENTS]", "[LATERAL\n"))
     r = client.call(Trigger, f"{N1}/reload", Trigger.Request())
     assert not r.success and "edited.tir" in r.message, r.message
     check(wheel, m1, INPUTS1, slips)
+
+    # a file caught half-written (an editor or a copy still at work): inside a line, and at a
+    # line end; the reload is refused naming file, line and key, the old model keeps running
+    for cut in (len(whole) // 2, whole.index(b"\n", len(whole) // 3) + 1):
+        tir_copy.write_bytes(whole[:cut])
+        r = client.call(Trigger, f"{N1}/reload", Trigger.Request())
+        assert not r.success and "edited.tir: line " in r.message, r.message
+        assert "cut short" in r.message, r.message
+        check(wheel, m1, INPUTS1, slips)
 
 
 # ------------------------------------------------------------------ bad inputs

@@ -117,6 +117,7 @@ def client():
 
 @pytest.fixture(scope="module")
 def model() -> TireModel:
+    """This module's nodes run config/default.tir: overrides conftest's MF 6.1 ``model``."""
     return TireModel.from_file(DEFAULT_TIR)
 
 

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import MF61_TIR, TIR_DIR
+from conftest import MF61_TIR, ROOT, TIR_DIR
 
 from tire_model_ros.cli import main as cli_main
 from tire_model_ros.model import TireModel
@@ -423,7 +422,7 @@ def test_model_temperature_lets_the_files_terms_act(model):
 def test_sample_bags_read_with_truth_beside(name):
     from tire_model_ros.recording import read_recording
 
-    bag = Path(__file__).resolve().parents[1] / "bags" / name
+    bag = ROOT / "bags" / name
     truth = json.loads(truth_path(bag).read_text())
     rec = read_recording(bag)
     assert sorted(rec) == sorted(truth["wheels"])

@@ -381,6 +381,9 @@ N_ROLLING = sum(ln.startswith(("[ROLLING", "QSY")) for ln in REF_LINES)
 TRUST_CASES = [
     ("typo_section", _replace("[LATERAL_COEFFICIENTS]", "[LATERAL_COEFICIENTS]"),
      T["[LATERAL_COEFFICIENTS]"] + 1, "PCY1", "unknown section [LATERAL_COEFICIENTS]"),
+    ("hyphen_section", _replace("[LATERAL_COEFFICIENTS]", "[LATERAL-COEFFICIENTS]"),
+     T["[LATERAL_COEFFICIENTS]"], None,
+     "malformed section header '[LATERAL-COEFFICIENTS]': a mistyped [LATERAL_COEFFICIENTS]?"),
     ("near_miss", _append("[ALIGNNG_COEFFICIENTS]"), len(REF_LINES) + 1,
      "[ALIGNNG_COEFFICIENTS]", "a mistyped [ALIGNING_COEFFICIENTS]"),
     ("missing_key", _drop("PDY2"), T["[LATERAL_COEFFICIENTS]"], "PDY2", "needed by MF 6.1"),
@@ -454,6 +457,52 @@ def test_file_cut_short_is_refused_and_lenient_fills_and_lists(tmp_path):
     assert "PEY5" in tir.filled and "TTX1" not in tir.filled and "QSX1" not in tir.filled
 
 
+@pytest.mark.parametrize("path", [*LOADABLE, DEFAULT_TIR], ids=lambda p: p.stem)
+def test_file_cut_short_anywhere_is_refused_or_is_the_file_less_optional_sections(tmp_path, path):
+    """Every 307th byte offset (the issue's MF 6.2 cut at byte 2900 with FNOMIN 67 among them):
+    cut inside a line, refused naming the file, the line, its key (when the cut kept the
+    ``=``) and the cut; cut at a line end, refused, or read as the whole file is where it
+    still has the lines (a file may end before its optional sections). --lenient reads a cut
+    inside a line only with the notes listing every filled key (tried on a quarter of them)."""
+    data = path.read_bytes()
+    whole = read_tir(path)
+    cut_path = tmp_path / path.name
+    offsets = sorted({*range(1, len(data), 307), 2900})
+    refused = 0
+    for at in offsets:
+        cut_path.write_bytes(data[:at])
+        *before, last = re.split(rb"\r\n|\r|\n", data[:at])  # the reader's line ends
+        try:
+            tir = read_tir(cut_path)
+        except TirError as exc:
+            refused += 1
+            message = str(exc)
+            assert message.startswith(f"{cut_path}: line {exc.line}: "), (at, message)
+            if last.strip():  # the last line, or what its loss explains
+                assert "cut short" in message, (at, message)
+                comment = last.lstrip().startswith((b"$", b"!"))
+                if exc.line == len(before) + 1 and b"=" in last and not comment:
+                    name = last.split(b"=")[0].strip().decode()
+                    assert exc.key == name.upper() and name in message, (at, message)
+            else:  # a needed key or section the file ends before
+                assert exc.key is not None and exc.key in message, (at, message)
+        else:
+            assert not last.strip(), f"cut at byte {at} inside line {last!r} read"
+            assert tir.given <= whole.given and tir.filled == frozenset(), at
+            assert all(tir.params[k] == whole.params[k] for k in tir.given), at
+            continue
+        if last.strip() and refused % 4 == 0:  # a quarter: lenient reads check the model
+            try:
+                lenient = read_tir(cut_path, lenient=True)
+            except TirError as exc:
+                assert str(exc).startswith(f"{cut_path}: line "), (at, str(exc))
+            else:
+                notes = "\n".join(lenient.notes)
+                assert "read as it is" in notes or "no line end" in notes, (at, notes)
+                assert all(f"{k}=" in notes for k in lenient.filled), (at, notes)
+    assert refused >= 0.8 * len(offsets), (refused, len(offsets))
+
+
 def test_lenient_keeps_unknown_sections_and_fills_what_they_hid(tmp_path):
     path = _mangled(
         tmp_path, "typo.tir", _replace("[LATERAL_COEFFICIENTS]", "[LATERAL_COEFICIENTS]")
@@ -469,7 +518,9 @@ def test_required_keys_and_bad_values_are_refused_even_when_lenient(tmp_path):
     for name, edit, word in [("nofnomin", _drop("FNOMIN"), "FNOMIN"),
                              ("zero", _replace("PCY1", "PCY1 = 0"), "PCY1"),
                              ("fz", _replace("FZMIN", "FZMIN = 20000"), "FZMAX"),
-                             ("qsx1", _replace("QSX1", "QSX1 = 1e308"), "QSX1")]:  # fmt: skip
+                             ("qsx1", _replace("QSX1", "QSX1 = 1e308"), "QSX1"),
+                             ("hyphen", _replace("[LATERAL_C", "[LATERAL-COEFFICIENTS]"),
+                              r"malformed section header '\[LATERAL-COEFFICIENTS\]'")]:  # fmt: skip
         with pytest.raises(TirError, match=rf"{name}\.tir: line \d+: {word}: "):
             read_tir(_mangled(tmp_path, f"{name}.tir", edit), lenient=True)
 

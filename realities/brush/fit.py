@@ -24,7 +24,10 @@ from . import tyre as ty
 
 HERE = Path(__file__).resolve().parent
 FITTED = HERE / "fitted"
-TEMPLATE = Path("/work/shared/reference/tir/FSAE_Defaults.tir")
+# the shared checkout beside the project root (as test/conftest.py finds it)
+TEMPLATE = (
+    Path(__file__).resolve().parents[3] / "shared" / "reference" / "tir" / "FSAE_Defaults.tir"
+)
 FIT_VERSION = "6"
 
 LAT = ["PCY1", "PDY1", "PDY2", "PDY3", "PEY1", "PEY2", "PEY4", "PEY5", "PKY1", "PKY2",

@@ -11,7 +11,8 @@ from tire_model_ros.model import TireModel, read_tir
 
 from . import sim as S
 
-TIR_DIR = Path("/work/shared/reference/tir")
+# the shared checkout beside the project root (as test/conftest.py finds it)
+TIR_DIR = Path(__file__).resolve().parents[3] / "shared" / "reference" / "tir"
 TYRES = {"MF61": "MagicFormula61_Parameters.tir", "PacejkaBook": "PacejkaBook_Defaults.tir"}
 G = 9.81
 P_ATM = 101325.0

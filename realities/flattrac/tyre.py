@@ -17,7 +17,8 @@ import numpy as np
 from tire_model_ros.model import TireModel, read_tir, write_tir
 from tire_model_ros.model.params import PRESSURE_COEFFICIENTS
 
-REF_DIR = Path("/work/shared/reference/tir")
+# the shared checkout beside the project root (as test/conftest.py finds it)
+REF_DIR = Path(__file__).resolve().parents[3] / "shared" / "reference" / "tir"
 TYRES = ("MagicFormula61_Parameters.tir", "PacejkaBook_Defaults.tir", "FSAE_Defaults.tir")
 
 # Our own pressure behaviour for files that have none: the shape of a passenger-car MF 6.1

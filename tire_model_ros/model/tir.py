@@ -383,7 +383,7 @@ def _parse_lines(path: str, lines: list[str]) -> _Parsed:
         if stripped.startswith("["):
             match = _SECTION_RE.fullmatch(stripped)
             if match is None:
-                raise TirError(path, number, None, f"malformed section header {stripped[:60]!r}")
+                raise TirError(path, number, None, _malformed_header(stripped))
             close_raw()
             name = match.group(1).upper()
             parsed.header_lines.setdefault(name, number)
@@ -407,6 +407,16 @@ def _parse_lines(path: str, lines: list[str]) -> _Parsed:
     while parsed.preamble and parsed.preamble[-1].startswith("$--"):
         parsed.preamble.pop()
     return parsed
+
+
+def _malformed_header(stripped: str) -> str:
+    """The refusal of a line that opens a section header badly, with the known section it
+    may have meant (``[LATERAL-COEFFICIENTS]``: a mistyped [LATERAL_COEFFICIENTS]?)."""
+    inner = stripped[1:].split("]", 1)[0].strip().upper()
+    guess = re.sub(r"[^A-Z0-9]+", "_", inner).strip("_")
+    near = difflib.get_close_matches(guess, _KNOWN_SECTIONS, n=1, cutoff=_NEAR_MISS)
+    meant = f": a mistyped [{near[0]}]?" if near else ""
+    return f"malformed section header {stripped[:60]!r}{meant}"
 
 
 def _split_value(path: str, number: int, key: str, rest: str) -> tuple[str, bool]:

@@ -30,7 +30,12 @@ import numpy as np
 import numpy.typing as npt
 
 from tire_model_ros.recording.series import WheelSeries
-from tire_model_ros.vocabulary import NS_PER_S, OPTIONAL_SERIES, WRENCH_SERIES
+from tire_model_ros.vocabulary import (
+    NS_PER_S,
+    OPTIONAL_SERIES,
+    REQUIRED_CHANNELS,
+    WRENCH_SERIES,
+)
 
 Stamps = npt.NDArray[np.int64]
 Indices = npt.NDArray[np.intp]
@@ -91,7 +96,7 @@ def align_wheel(prefix: str, channels: Mapping[str, Stamped]) -> WheelSeries:
         A required channel without messages, or no slip at or after the first load; the message
         names the topic.
     """
-    for c in ("slip", "load", "measured_forces"):
+    for c in REQUIRED_CHANNELS:
         if c not in channels or len(channels[c][0]) == 0:
             raise ValueError(f"wheel {prefix}: topic {prefix}/{c} has no messages")
     slip_ns, slip = channels["slip"]

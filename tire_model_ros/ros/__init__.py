@@ -12,6 +12,7 @@ tell the user what is missing instead of failing with a traceback.
 from __future__ import annotations
 
 import importlib
+import sys
 
 
 class RosUnavailableError(RuntimeError):
@@ -27,3 +28,25 @@ def require_ros(what: str) -> None:
             f"{what} needs ROS 2 Jazzy (rclpy), which cannot be imported here ({exc}); "
             "source /opt/ros/jazzy/setup.bash or use the project's .venv"
         ) from None
+
+
+def _entry(command: str, module: str, args: list[str] | None) -> int:
+    """Run ``module``'s ``main`` when ROS 2 can be imported, else say what is missing (exit 1)."""
+    try:
+        require_ros(command)
+    except RosUnavailableError as exc:
+        print(f"{command}: error: {exc}", file=sys.stderr)
+        return 1
+    main = importlib.import_module(module).main
+    code: int = main(args)
+    return code
+
+
+def node_main(args: list[str] | None = None) -> int:
+    """Console entry point of ``tire-model-node`` (:func:`tire_model_ros.ros.node.main`)."""
+    return _entry("tire-model-node", "tire_model_ros.ros.node", args)
+
+
+def lifecycle_main(args: list[str] | None = None) -> int:
+    """Console entry point of ``tire-model-lifecycle-node`` (:mod:`.lifecycle`'s ``main``)."""
+    return _entry("tire-model-lifecycle-node", "tire_model_ros.ros.lifecycle", args)

@@ -439,6 +439,9 @@ class TireModelCore(Node):
             self.reloads += 1
             loaded = ", ".join(f"{k or 'shared'}={slots[k].path}" for k in redeclare if k in slots)
             self.get_logger().info(f"model loaded: {loaded or 'wheels back on shared model'}")
+            for k in redeclare:  # what a lenient read filled or let through, as at start-up
+                for note in slots[k].notes if k in slots else ():
+                    self.get_logger().warning(f"lenient: {note}")
 
     def _reject(self, reason: str) -> SetParametersResult:
         self.param_rejections += 1
