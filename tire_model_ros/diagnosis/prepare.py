@@ -16,6 +16,7 @@ from scipy.signal import savgol_filter
 from tire_model_ros.fit.sweeps import Segment, split_segments
 from tire_model_ros.model import TireModel
 from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.vocabulary import DIAGNOSED_CHANNELS
 
 from .dynamics import cumulative_work_J, frictional_power_W
 from .folds import BLOCK_S, assign_folds, block_index
@@ -23,7 +24,7 @@ from .folds import BLOCK_S, assign_folds, block_index
 Array = npt.NDArray[np.float64]
 Index = npt.NDArray[np.int64]
 
-CHANNELS = ("Fx", "Fy", "Mz")  # the measured channels compared; Fx, Fy are selected on
+CHANNELS = DIAGNOSED_CHANNELS  # the measured channels compared; Fx, Fy are selected on
 MIN_SAMPLES = 50
 MIN_BLOCKS = 6  # fewer whole sweeps than this: time blocks instead
 TIME_BLOCK_S = (2.0, 15.0)  # a time block spans 4 correlation times of the residual, within

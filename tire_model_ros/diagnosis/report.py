@@ -33,9 +33,10 @@ import numpy as np
 import numpy.typing as npt
 
 from tire_model_ros.atomic import replace_path
+from tire_model_ros.vocabulary import DIAGNOSED_CHANNELS
 
 # The channels the diagnosis compares, in report order; each is plotted over its own slip.
-CHANNELS: tuple[str, ...] = ("Fx", "Fy", "Mz")
+CHANNELS = DIAGNOSED_CHANNELS
 SLIP_OF_CHANNEL: dict[str, tuple[str, str, float]] = {
     # channel -> (WheelSeries attribute, axis label, scale to the plotted unit)
     "Fx": ("kappa", "slip ratio κ [-]", 1.0),
