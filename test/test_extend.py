@@ -148,6 +148,28 @@ def test_diagnosis_names_sidewall_contact_where_only_it_is_left_out(tyre, sidewa
         assert named == ["none"], log
 
 
+@pytest.mark.parametrize("sidewall", [True, False])
+def test_sidewall_found_in_a_coarse_fe_table(tyre, sidewall):
+    """An FE tool's table has a few points per degree, not a rig's 100 a second: the
+    noise-free special_conditions at 2 Hz (some 50 lateral samples in the corner) still
+    names sidewall_contact against the tyre without it; the null, nothing."""
+    from tire_model_ros.fit.sidewall import find_sidewall
+
+    wheels, _ = simulate_session(
+        tyre,
+        "special_conditions",
+        rate_hz=RATE_HZ,
+        effects={"sidewall": sidewall, "heating": False, "model_temperature": True,
+                 "noise": False},
+    )  # fmt: skip
+    w = wheels[0]
+    table = w.select(np.arange(len(w)) % 10 == 0)
+    sw = find_sidewall(tyre, [table])
+    assert sw is not None and sw.named == sidewall, sw
+    if sidewall:
+        assert 2.2 < sw.params[0] < 2.9 and sw.rms_after < 0.3 * sw.rms_before, sw
+
+
 # ------------------------------------------------------------------ the node counts
 def test_node_counts_inputs_outside_the_envelope(tyre, tmp_path):
     """A .tir with an envelope (loads 0.4-1.0 FNOMIN at 260 kPa, 20-40 degC): the node's
