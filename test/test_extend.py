@@ -40,17 +40,24 @@ def fit_extend(d: Path, other: str, out: str) -> subprocess.CompletedProcess[str
 # ------------------------------------------------------------------ a small fused fit
 @pytest.fixture(scope="module")
 def fused(tyre, tmp_path_factory):
-    """rig (safe_envelope: heating, no temperature) + simulation (special_conditions),
+    """rig (safe_envelope: heating, no temperature) + simulation (special_conditions) as an
+    FE tool's table: written as CSV (``export``), brought in with ``import --format csv``;
     fused from a start file without pressure or temperature terms."""
     d = tmp_path_factory.mktemp("extend")
     rig, rig_truth = simulate_session(tyre, "safe_envelope", seed=4, rate_hz=RATE_HZ)
     sim, sim_truth = simulate_session(tyre, "special_conditions", seed=5, rate_hz=RATE_HZ)
     write_session(d / "rig", rig, rig_truth)
     write_session(d / "sim", sim, sim_truth)
+    for cmd in (
+        ["export", str(d / "sim"), "-o", str(d / "fe.csv")],
+        ["import", "--format", "csv", str(d / "fe.csv"), "-o", str(d / "fe")],
+    ):
+        res = subprocess.run([*TOOL, *cmd], capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
     zero = [f"PP{a}{i}" for a in "XY" for i in range(1, 5)]
     zero += [f"TT{a}{i}" for a in "XY" for i in range(1, 5)]
     write_tir(tyre.with_params(dict.fromkeys(zero, 0.0)).tir, d / "start.tir")
-    return d, fit_extend(d, "sim", "out.tir")
+    return d, fit_extend(d, "fe", "out.tir")
 
 
 def test_fused_fit_names_the_difference_and_widens_the_ranges(fused):
@@ -66,6 +73,15 @@ def test_fused_fit_names_the_difference_and_widens_the_ranges(fused):
     ext = json.loads((d / "out_fit_report" / "extension.json").read_text())
     assert ext["comparison"]["words"][0] == "temperature"
     assert ext["ranges"]["PRESMIN"] == {"start": 200e3, "fused": P["PRESMIN"]}
+    rows = len((d / "fe.csv").read_text().splitlines()) - 1  # the FE table is the SIM
+    assert ext["sources"]["simulation_samples"] == rows
+    # the simulation's friction is the tyre's: the rig's level found at about 1; the rig's
+    # loads and pressures all simulated (special_conditions' overlap block)
+    friction = ext["comparison"]["rig_friction_of_simulation"]
+    assert 0.95 < friction["LMUX"] < 1.05 and 0.95 < friction["LMUY"] < 1.05, friction
+    assert ext["comparison"]["rig_at_simulated_load_and_pressure"] > 0.9
+    md = (d / "out_fit_report" / "extension.md").read_text()
+    assert "Friction: the rig's is" in md and "% at its temperatures too" in md
     for name in ("extension.md", "envelope.png", "seed_pressure.png", "seed_load.png",
                  "seed_temperature.png", "fit_report.md", "simulation/fit_report.md"):  # fmt: skip
         assert (d / "out_fit_report" / name).stat().st_size > 0, name
@@ -103,22 +119,6 @@ def test_fused_model_follows_the_tyre_beyond_the_rig(fused, tyre):
                                w.T[sel])  # fmt: skip
                 nrmse[k] = float(np.sqrt(np.mean((getattr(o, c) - y) ** 2)) / np.ptp(y))
             assert nrmse["out"] < 0.03 and nrmse["out"] < nrmse["start"] / 2, (name, c, nrmse)
-
-
-def test_fe_table_imported_as_csv_extends_the_rig(fused):
-    """An FE tool's table: the simulation written as CSV (``export``), brought in with
-    ``import --format csv`` and used as the SIM of ``fit --extend``."""
-    d, _ = fused
-    for cmd in (
-        ["export", str(d / "sim"), "-o", str(d / "fe.csv")],
-        ["import", "--format", "csv", str(d / "fe.csv"), "-o", str(d / "fe")],
-    ):
-        res = subprocess.run([*TOOL, *cmd], capture_output=True, text=True, timeout=300)
-        assert res.returncode == 0, res.stderr
-    res = fit_extend(d, "fe", "fe.tir")
-    assert "the rig differs from it by: temperature" in res.stdout, res.stdout
-    P = TireModel.from_file(d / "fe.tir").params
-    assert P["PRESMIN"] <= 60e3 and P["TEMPMIN"] <= -10.0 and P["TEMPMAX"] >= 80.0
 
 
 # ------------------------------------------------------------------ sidewall contact
