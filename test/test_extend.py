@@ -121,6 +121,29 @@ def test_fused_model_follows_the_tyre_beyond_the_rig(fused, tyre):
             assert nrmse["out"] < 0.03 and nrmse["out"] < nrmse["start"] / 2, (name, c, nrmse)
 
 
+def test_rig_at_an_unknown_temperature_counts_as_the_ambient_in_the_ranges(tyre):
+    """A rig with no temperature channel and no heating found: OUT.tir's temperature range
+    is still the fitted one (the simulation's set temperatures and the rig's ambient), not
+    the start file's; a rig wheel whose temperature is known keeps it."""
+    from tire_model_ros.fit.extend import at_ambient, fused_ranges
+    from tire_model_ros.recording.series import WheelSeries
+
+    n = 400
+    slip = np.linspace(-0.1, 0.1, n)
+
+    def wheel(T: np.ndarray | None) -> WheelSeries:
+        return WheelSeries("/w", np.arange(n) * 0.01, slip, slip, np.zeros(n),
+                           np.full(n, FNOMIN), np.full(n, 2.6e5), T)  # fmt: skip
+
+    rig, hot_rig, sim = wheel(None), wheel(np.full(n, 45.0)), wheel(np.linspace(-10, 80, n))
+    T = at_ambient([rig, hot_rig], [None, hot_rig.T], 20.0)
+    assert T[0] is not None and np.all(T[0] == 20.0) and T[1] is hot_rig.T
+    ranges, _ = fused_ranges(tyre, [rig, hot_rig, sim], [*T, sim.T])
+    assert (ranges["TEMPMIN"], ranges["TEMPMAX"]) == (-10.0, 80.0)
+    ranges, _ = fused_ranges(tyre, [rig, sim], [*at_ambient([rig], [None], 90.0), sim.T])
+    assert ranges["TEMPMAX"] == 90.0  # the rig's ambient beyond the simulation's
+
+
 # ------------------------------------------------------------------ sidewall contact
 @pytest.mark.parametrize("sidewall", [True, False])
 def test_diagnosis_names_sidewall_contact_where_only_it_is_left_out(tyre, sidewall):

@@ -329,6 +329,13 @@ def compare(
 # --- 3. the fused fit, 4. ranges and envelope ------------------------------------------------
 
 
+def at_ambient(
+    wheels: Sequence[WheelSeries], T: Sequence[F64 | None], ambient_C: float
+) -> list[F64 | None]:
+    """Each wheel's temperature ``T``, the ambient [degC] where it is not known."""
+    return [np.full(len(s), ambient_C) if t is None else t for s, t in zip(wheels, T, strict=True)]
+
+
 def fused_ranges(
     start: TireModel, wheels: Sequence[WheelSeries], T: Sequence[F64 | None]
 ) -> tuple[dict[str, float], list[str]]:
@@ -412,11 +419,10 @@ def fit_extended(
     sim_env = envelope_of(start, sim, SIMULATION, sim_T)
     sim_lp = envelope_of(start, sim, SIMULATION, [None] * len(sim))  # load x pressure only
     comp = compare(rig, sim_fit.model, sim_env, options, sim_lp)
-    rig_env = envelope_of(start, rig, RIG, comp.rig_T)
-    if rig_env.T_step_K == 0.0 and sim_env.T_step_K > 0.0:  # a rig at an unknown temperature
-        rig_env = envelope_of(
-            start, rig, RIG, [np.full(len(s), comp.T_ambient_C) for s in rig]
-        )  # counts as the ambient's cells
+    # A rig wheel at an unknown temperature (no channel, no heating found) counts as the
+    # ambient's, in the envelope and in the temperature range alike.
+    rig_T = at_ambient(rig, comp.rig_T, comp.T_ambient_C) if sim_env.T_step_K > 0 else comp.rig_T
+    rig_env = envelope_of(start, rig, RIG, rig_T)
     rig_fused = [
         s if t is None else dataclasses.replace(s, T=t)
         for s, t in zip(rig, comp.rig_T, strict=True)
@@ -428,7 +434,7 @@ def fit_extended(
     )
     used = [_beyond(rig_env.filled(), start, s, t) for s, t in zip(sim, sim_T, strict=True)]
     envelope = rig_env.union(sim_env).filled()
-    ranges, notes = fused_ranges(start, [*rig, *sim], [*comp.rig_T, *sim_T])
+    ranges, notes = fused_ranges(start, [*rig, *sim], [*rig_T, *sim_T])
     model = TireModel(envelope.into(final.model.with_params(ranges).tir))
     before = {k: (float(start.params.get(k, v)), v) for k, v in ranges.items()}
     return ExtendResult(
