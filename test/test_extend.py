@@ -40,17 +40,24 @@ def fit_extend(d: Path, other: str, out: str) -> subprocess.CompletedProcess[str
 # ------------------------------------------------------------------ a small fused fit
 @pytest.fixture(scope="module")
 def fused(tyre, tmp_path_factory):
-    """rig (safe_envelope: heating, no temperature) + simulation (special_conditions),
+    """rig (safe_envelope: heating, no temperature) + simulation (special_conditions) as an
+    FE tool's table: written as CSV (``export``), brought in with ``import --format csv``;
     fused from a start file without pressure or temperature terms."""
     d = tmp_path_factory.mktemp("extend")
     rig, rig_truth = simulate_session(tyre, "safe_envelope", seed=4, rate_hz=RATE_HZ)
     sim, sim_truth = simulate_session(tyre, "special_conditions", seed=5, rate_hz=RATE_HZ)
     write_session(d / "rig", rig, rig_truth)
     write_session(d / "sim", sim, sim_truth)
+    for cmd in (
+        ["export", str(d / "sim"), "-o", str(d / "fe.csv")],
+        ["import", "--format", "csv", str(d / "fe.csv"), "-o", str(d / "fe")],
+    ):
+        res = subprocess.run([*TOOL, *cmd], capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
     zero = [f"PP{a}{i}" for a in "XY" for i in range(1, 5)]
     zero += [f"TT{a}{i}" for a in "XY" for i in range(1, 5)]
     write_tir(tyre.with_params(dict.fromkeys(zero, 0.0)).tir, d / "start.tir")
-    return d, fit_extend(d, "sim", "out.tir")
+    return d, fit_extend(d, "fe", "out.tir")
 
 
 def test_fused_fit_names_the_difference_and_widens_the_ranges(fused):
@@ -66,6 +73,15 @@ def test_fused_fit_names_the_difference_and_widens_the_ranges(fused):
     ext = json.loads((d / "out_fit_report" / "extension.json").read_text())
     assert ext["comparison"]["words"][0] == "temperature"
     assert ext["ranges"]["PRESMIN"] == {"start": 200e3, "fused": P["PRESMIN"]}
+    rows = len((d / "fe.csv").read_text().splitlines()) - 1  # the FE table is the SIM
+    assert ext["sources"]["simulation_samples"] == rows
+    # the simulation's friction is the tyre's: the rig's level found at about 1; the rig's
+    # loads and pressures all simulated (special_conditions' overlap block)
+    friction = ext["comparison"]["rig_friction_of_simulation"]
+    assert 0.95 < friction["LMUX"] < 1.05 and 0.95 < friction["LMUY"] < 1.05, friction
+    assert ext["comparison"]["rig_at_simulated_load_and_pressure"] > 0.9
+    md = (d / "out_fit_report" / "extension.md").read_text()
+    assert "Friction: the rig's is" in md and "% at its temperatures too" in md
     for name in ("extension.md", "envelope.png", "seed_pressure.png", "seed_load.png",
                  "seed_temperature.png", "fit_report.md", "simulation/fit_report.md"):  # fmt: skip
         assert (d / "out_fit_report" / name).stat().st_size > 0, name
@@ -105,20 +121,27 @@ def test_fused_model_follows_the_tyre_beyond_the_rig(fused, tyre):
             assert nrmse["out"] < 0.03 and nrmse["out"] < nrmse["start"] / 2, (name, c, nrmse)
 
 
-def test_fe_table_imported_as_csv_extends_the_rig(fused):
-    """An FE tool's table: the simulation written as CSV (``export``), brought in with
-    ``import --format csv`` and used as the SIM of ``fit --extend``."""
-    d, _ = fused
-    for cmd in (
-        ["export", str(d / "sim"), "-o", str(d / "fe.csv")],
-        ["import", "--format", "csv", str(d / "fe.csv"), "-o", str(d / "fe")],
-    ):
-        res = subprocess.run([*TOOL, *cmd], capture_output=True, text=True, timeout=300)
-        assert res.returncode == 0, res.stderr
-    res = fit_extend(d, "fe", "fe.tir")
-    assert "the rig differs from it by: temperature" in res.stdout, res.stdout
-    P = TireModel.from_file(d / "fe.tir").params
-    assert P["PRESMIN"] <= 60e3 and P["TEMPMIN"] <= -10.0 and P["TEMPMAX"] >= 80.0
+def test_rig_at_an_unknown_temperature_counts_as_the_ambient_in_the_ranges(tyre):
+    """A rig with no temperature channel and no heating found: OUT.tir's temperature range
+    is still the fitted one (the simulation's set temperatures and the rig's ambient), not
+    the start file's; a rig wheel whose temperature is known keeps it."""
+    from tire_model_ros.fit.extend import at_ambient, fused_ranges
+    from tire_model_ros.recording.series import WheelSeries
+
+    n = 400
+    slip = np.linspace(-0.1, 0.1, n)
+
+    def wheel(T: np.ndarray | None) -> WheelSeries:
+        return WheelSeries("/w", np.arange(n) * 0.01, slip, slip, np.zeros(n),
+                           np.full(n, FNOMIN), np.full(n, 2.6e5), T)  # fmt: skip
+
+    rig, hot_rig, sim = wheel(None), wheel(np.full(n, 45.0)), wheel(np.linspace(-10, 80, n))
+    T = at_ambient([rig, hot_rig], [None, hot_rig.T], 20.0)
+    assert T[0] is not None and np.all(T[0] == 20.0) and T[1] is hot_rig.T
+    ranges, _ = fused_ranges(tyre, [rig, hot_rig, sim], [*T, sim.T])
+    assert (ranges["TEMPMIN"], ranges["TEMPMAX"]) == (-10.0, 80.0)
+    ranges, _ = fused_ranges(tyre, [rig, sim], [*at_ambient([rig], [None], 90.0), sim.T])
+    assert ranges["TEMPMAX"] == 90.0  # the rig's ambient beyond the simulation's
 
 
 # ------------------------------------------------------------------ sidewall contact
@@ -146,6 +169,28 @@ def test_diagnosis_names_sidewall_contact_where_only_it_is_left_out(tyre, sidewa
         assert 1.8 < th < 2.7, th  # 140 kPa at 120 % load: 1.8; 60 kPa: 2.7 (the gate's form)
     else:
         assert named == ["none"], log
+
+
+@pytest.mark.parametrize("sidewall", [True, False])
+def test_sidewall_found_in_a_coarse_fe_table(tyre, sidewall):
+    """An FE tool's table has a few points per degree, not a rig's 100 a second: the
+    noise-free special_conditions at 2 Hz (some 50 lateral samples in the corner) still
+    names sidewall_contact against the tyre without it; the null, nothing."""
+    from tire_model_ros.fit.sidewall import find_sidewall
+
+    wheels, _ = simulate_session(
+        tyre,
+        "special_conditions",
+        rate_hz=RATE_HZ,
+        effects={"sidewall": sidewall, "heating": False, "model_temperature": True,
+                 "noise": False},
+    )  # fmt: skip
+    w = wheels[0]
+    table = w.select(np.arange(len(w)) % 10 == 0)
+    sw = find_sidewall(tyre, [table])
+    assert sw is not None and sw.named == sidewall, sw
+    if sidewall:
+        assert 2.2 < sw.params[0] < 2.9 and sw.rms_after < 0.3 * sw.rms_before, sw
 
 
 # ------------------------------------------------------------------ the node counts

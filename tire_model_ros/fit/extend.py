@@ -11,10 +11,14 @@ is not the tyre: an FE model is isothermal while the tyre on the rig heats as it
 2. the rig is diagnosed against the simulation's model (:func:`diagnose`): the words say how
    the two differ where both reach. A concealed ``temperature`` is corrected: the rig's hidden
    temperature takes the shape the diagnosis inferred, its scale fitted on the rig with the
-   temperature terms the simulation's known set temperatures gave (:func:`heating_scale`);
-3. the final fit pools the rig (with that temperature) and the simulation where the rig does
-   not reach: the rig is the truth wherever it has data (the simulation's forces there are
-   only compared, not fitted);
+   temperature terms the simulation's known set temperatures gave (:func:`heating_scale`).
+   Together with it a friction level of the rig's own is fitted (how far the simulation's
+   friction is off); the diagnosis' other words are reported, not corrected;
+3. the final fit is the rig's (with that temperature): its levels (friction, stiffness at
+   the nominal load, shifts, aligning moment, combined slip: ``LEVELS``) refitted with the
+   simulation's shapes and trends held (:func:`trend_terms`). The rig is the truth where it
+   has data; beyond it the model is the rig's levels with the simulation's trends (the
+   simulation's forces inform the trends only, through step 1);
 4. OUT.tir's ranges (PRESMIN/PRESMAX, FZMIN/FZMAX, TEMPMIN/TEMPMAX) are the fitted data's and
    its ``[FIT_ENVELOPE]`` says which source informed which cells (:mod:`..model.envelope`).
 """
@@ -83,7 +87,10 @@ class Comparison:
     fitted scale of the diagnosis' temperature convention (None: no hidden temperature to
     correct); ``rig_T`` the rig's temperature as fused (recorded or estimated) per wheel;
     ``rms`` the RMS of rig - model [N] on the rig with the simulation's model at the nominal
-    temperature ("uncorrected") and at the rig's estimated one ("corrected").
+    temperature ("uncorrected") and at the rig's estimated one ("corrected"); ``friction``
+    the rig's friction as a factor of the simulation's (LMUX, LMUY; fitted with the heating
+    scale, None without one); ``overlap_load_pressure`` and ``overlap`` the share of the rig's
+    sweep samples at loads and pressures the simulation covers, and at its temperatures too.
     """
 
     diagnosis: Diagnosis
@@ -92,6 +99,8 @@ class Comparison:
     T_ambient_C: float
     rms: dict[str, dict[str, float]]
     overlap: float  # share of the rig's sweep samples in cells the simulation covers
+    overlap_load_pressure: float = 0.0  # ... in its load x pressure cells, any temperature
+    friction: dict[str, float] | None = None
 
     @property
     def words(self) -> list[str]:
@@ -188,18 +197,19 @@ def fit_simulation(
         return first, sw, none
     nom_p, FNOMIN = nominal_inputs(start)["p"], float(start.params["FNOMIN"])
     corners = [sw.corner(s, nom_p, FNOMIN) for s in sim]
-    _say(
-        options,
-        f"sidewall_contact in the simulation: deflection > {sw.params[0]:.2f}, |alpha| > "
-        f"{math.degrees(sw.params[1]):.1f} deg ({sw.n_corner} lateral samples, Fy mismatch "
-        f"{sw.rms_before:.0f} -> {sw.rms_after:.0f} N): left out of the lateral fit",
-    )
+    _say(options, "sidewall_contact in the simulation: its corner left out of the lateral fit")
     clean = [_without_forces(s, c, ("Fy", "Mz")) for s, c in zip(sim, corners, strict=True)]
     second = fit_recording(clean, start, dataclasses.replace(options.fit))
     sw2 = find_sidewall(second.model, sim)  # against the model the corner did not bend
     if sw2 is not None and sw2.named:
         sw = sw2
         corners = [sw.corner(s, nom_p, FNOMIN) for s in sim]
+    _say(
+        options,
+        f"sidewall_contact: deflection > {sw.params[0]:.2f}, |alpha| > "
+        f"{math.degrees(sw.params[1]):.1f} deg ({sw.n_corner} lateral samples, Fy mismatch "
+        f"{sw.rms_before:.0f} -> {sw.rms_after:.0f} N)",
+    )
     return second, sw, corners
 
 
@@ -260,8 +270,11 @@ def compare(
     sim_model: TireModel,
     sim_env: Envelope,
     options: ExtendOptions,
+    sim_env_load_pressure: Envelope | None = None,
 ) -> Comparison:
-    """Diagnose the rig against the simulation's model; correct a concealed temperature."""
+    """Diagnose the rig against the simulation's model; correct a concealed temperature.
+    ``sim_env_load_pressure``: the simulation's cells in load and pressure alone (for the
+    overlap at any temperature; default ``sim_env``)."""
     from tire_model_ros.diagnosis import diagnose
 
     _say(options, "diagnose the rig against the simulation's model (where they differ)")
@@ -275,7 +288,7 @@ def compare(
     T_amb = nom_T if options.rig_ambient_C is None else float(options.rig_ambient_C)
     rig_T: list[F64 | None] = [None if s.T is None else np.asarray(s.T) for s in rig]
     hidden = next((e for e in diag.effects if e.name == "temperature" and e.concealed), None)
-    scale = None
+    scale, level = None, None
     if hidden is not None and all(s.T is None for s in rig):
         conv = float(hidden.parameters.get("T_amb_C", nom_T))
         rise = [np.asarray(diag.inferred[s.prefix]["T"]) - conv for s in rig]
@@ -304,10 +317,23 @@ def compare(
         ]
     )  # fmt: skip
     overlap = float(np.mean(covered)) if len(covered) else 0.0
-    return Comparison(diag, scale, rig_T, T_amb, rms, overlap)
+    lp = sim_env_load_pressure or sim_env
+    nom_p = nominal_inputs(sim_model)["p"]
+    in_lp = [
+        lp.contains(s.Fz, _channel(s, "p", nom_p), np.full(len(s), T_amb))[_swept(s)] for s in rig
+    ]
+    overlap_lp = float(np.mean(np.concatenate(in_lp))) if sum(map(len, in_lp)) else 0.0
+    return Comparison(diag, scale, rig_T, T_amb, rms, overlap, overlap_lp, level)
 
 
 # --- 3. the fused fit, 4. ranges and envelope ------------------------------------------------
+
+
+def at_ambient(
+    wheels: Sequence[WheelSeries], T: Sequence[F64 | None], ambient_C: float
+) -> list[F64 | None]:
+    """Each wheel's temperature ``T``, the ambient [degC] where it is not known."""
+    return [np.full(len(s), ambient_C) if t is None else t for s, t in zip(wheels, T, strict=True)]
 
 
 def fused_ranges(
@@ -329,12 +355,13 @@ def fused_ranges(
     if all(t is not None for t in T):
         Ts = np.concatenate([t[k] for t, k in zip(T, keep, strict=True) if t is not None])
         out.update({"TEMPMIN": float(np.min(Ts)), "TEMPMAX": float(np.max(Ts))})
+    rounded = {k: _round_out(k, v) for k, v in out.items()}
     notes = [
-        f"{k} {P[k]:g} -> {v:.6g}"
-        for k, v in out.items()
+        f"{k} {P[k]:g} -> {v:g}"
+        for k, v in rounded.items()
         if not math.isclose(float(P.get(k, v)), v, rel_tol=1e-9)
     ]
-    return {k: _round_out(k, v) for k, v in out.items()}, notes
+    return rounded, notes
 
 
 def _round_out(name: str, value: float) -> float:
@@ -390,12 +417,12 @@ def fit_extended(
     sim_fit, sw, corners = fit_simulation(sim, base, options)
     sim_T = [None if s.T is None else np.asarray(s.T) for s in sim]
     sim_env = envelope_of(start, sim, SIMULATION, sim_T)
-    comp = compare(rig, sim_fit.model, sim_env, options)
-    rig_env = envelope_of(start, rig, RIG, comp.rig_T)
-    if rig_env.T_step_K == 0.0 and sim_env.T_step_K > 0.0:  # a rig at an unknown temperature
-        rig_env = envelope_of(
-            start, rig, RIG, [np.full(len(s), comp.T_ambient_C) for s in rig]
-        )  # counts as the ambient's cells
+    sim_lp = envelope_of(start, sim, SIMULATION, [None] * len(sim))  # load x pressure only
+    comp = compare(rig, sim_fit.model, sim_env, options, sim_lp)
+    # A rig wheel at an unknown temperature (no channel, no heating found) counts as the
+    # ambient's, in the envelope and in the temperature range alike.
+    rig_T = at_ambient(rig, comp.rig_T, comp.T_ambient_C) if sim_env.T_step_K > 0 else comp.rig_T
+    rig_env = envelope_of(start, rig, RIG, rig_T)
     rig_fused = [
         s if t is None else dataclasses.replace(s, T=t)
         for s, t in zip(rig, comp.rig_T, strict=True)
@@ -407,7 +434,7 @@ def fit_extended(
     )
     used = [_beyond(rig_env.filled(), start, s, t) for s, t in zip(sim, sim_T, strict=True)]
     envelope = rig_env.union(sim_env).filled()
-    ranges, notes = fused_ranges(start, [*rig, *sim], [*comp.rig_T, *sim_T])
+    ranges, notes = fused_ranges(start, [*rig, *sim], [*rig_T, *sim_T])
     model = TireModel(envelope.into(final.model.with_params(ranges).tir))
     before = {k: (float(start.params.get(k, v)), v) for k, v in ranges.items()}
     return ExtendResult(

@@ -126,6 +126,8 @@ def summary(result: ExtendResult) -> dict[str, Any]:
             "rig_temperature_C": _span(comp.rig_T),
             "rms_rig_against_simulation_N": comp.rms,
             "rig_in_simulation_cells": comp.overlap,
+            "rig_at_simulated_load_and_pressure": comp.overlap_load_pressure,
+            "rig_friction_of_simulation": comp.friction,
         },
         "sidewall": None if result.sidewall is None else result.sidewall.to_json(),
         "ranges": {k: {"start": a, "fused": b} for k, (a, b) in result.ranges.items()},
@@ -164,9 +166,10 @@ def markdown(result: ExtendResult) -> str:
         "",
         "## Where rig and simulation differ",
         "",
-        "The rig diagnosed against the simulation's model "
-        f"({100 * comp.overlap:.0f} % of the rig's sweep samples lie in cells the simulation "
-        "covers):",
+        "The rig diagnosed against the simulation's model: "
+        f"{100 * comp.overlap_load_pressure:.0f} % of the rig's sweep samples lie at loads and "
+        f"pressures the simulation covers, {100 * comp.overlap:.0f} % at its temperatures too "
+        "(the rig's tyre as estimated below). The diagnosis names:",
         "",
         *[
             f"- **{e.name}**{' (concealed)' if e.concealed else ''} in {e.channel}: {e.where}"
@@ -215,6 +218,23 @@ def _correction_lines(result: ExtendResult) -> list[str]:
         ]
     else:
         out += ["No hidden temperature to correct (recorded, or none found).", ""]
+    if comp.friction is not None:
+        fx, fy = comp.friction["LMUX"], comp.friction["LMUY"]
+        out += [
+            f"Friction: the rig's is {fx:.3f} x (longitudinal) and {fy:.3f} x (lateral) the "
+            "simulation's (fitted with the heating's scale). The fused model takes the rig's "
+            "friction, so at the force peaks of the seed figures below its lines lie about "
+            f"{100 * (fx - 1):+.1f} % (Fx) and {100 * (fy - 1):+.1f} % (Fy) from the "
+            "simulation's dots.",
+            "",
+        ]
+    others = [e.name for e in comp.diagnosis.effects if e.name not in ("temperature", "none")]
+    if others:
+        out += [
+            f"Not corrected: {', '.join(others)}. Beyond the rig the simulation's trends are "
+            "kept; where the rig reaches, its own levels (below) are fitted.",
+            "",
+        ]
     out += [
         "| rig - simulation's model, RMS [N] | Fx | Fy |",
         "| --- | --- | --- |",
@@ -311,17 +331,28 @@ def plot_seed_figure(
     import matplotlib.pyplot as plt
 
     fig, (ax_x, ax_y) = plt.subplots(1, 2, figsize=(11, 4.4))
+    hollow = {False: False, True: False}  # per panel: sidewall-corner samples drawn
     for n, cond in enumerate(conditions):
         colour = f"C{n}"
         for ax, lateral in ((ax_x, False), (ax_y, True)):
-            _seed_curve(ax, result, cond, lateral, colour)
+            hollow[lateral] |= _seed_curve(ax, result, cond, lateral, colour)
     ax_x.set_xlabel("slip ratio kappa [-]")
     ax_x.set_ylabel("longitudinal force Fx [N]")
     ax_y.set_xlabel("slip angle alpha [deg]")
     ax_y.set_ylabel("lateral force Fy [N]")
-    for ax in (ax_x, ax_y):
+    from matplotlib.lines import Line2D
+
+    keys = [
+        Line2D([], [], color="grey", ls="-", lw=1.5, label="fused model"),
+        Line2D([], [], color="grey", ls="", marker=".", label="simulation"),
+    ]
+    corner_key = Line2D([], [], color="grey", ls="", marker="o", ms=4, mfc="none",
+                        label="simulation in the sidewall contact (not fitted)")  # fmt: skip
+    for ax, lateral in ((ax_x, False), (ax_y, True)):
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        handles, _ = ax.get_legend_handles_labels()
+        ax.legend(handles=[*handles, *keys, *([corner_key] if hollow[lateral] else [])],
+                  fontsize=7)  # fmt: skip
     fig.suptitle(f"{title}: simulation (dots) against the fused model (lines)", fontsize=10)
     fig.tight_layout()
     _save(fig, path)
@@ -330,7 +361,9 @@ def plot_seed_figure(
 
 def _seed_curve(
     ax: Axes, result: ExtendResult, cond: Condition, lateral: bool, colour: str
-) -> None:
+) -> bool:
+    """One condition's simulation samples and model curve; whether sidewall-corner samples
+    were drawn (hollow)."""
     model = result.model
     fz0 = float(model.params["FNOMIN"])
     T = nominal_inputs(model)["T"] if cond.T_C is None else cond.T_C
@@ -352,6 +385,7 @@ def _seed_curve(
     )  # fmt: skip
     label = cond.label + ("" if len(x) else " (model only: no simulation samples)")
     ax.plot(grid, out.Fy if lateral else out.Fx, "-", color=colour, lw=1.5, label=label)
+    return bool(len(x) and corner.any())
 
 
 def _near_samples(

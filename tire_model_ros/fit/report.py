@@ -411,7 +411,8 @@ def _panel_rmse(result: FitResult, c: str, groups: Mapping[float, Members]) -> s
                 for w, i in members
             ]
         )
-        rmse.append(float(np.sqrt(np.nanmean(d * d))))
+        d = d[np.isfinite(d)]  # none finite: a channel not measured on this panel
+        rmse.append(float(np.sqrt(np.mean(d * d))) if d.size else math.nan)
     return f"{c} rmse {_fmt(rmse[0], 3)} -> {_fmt(rmse[1], 3)} {UNIT[c]}"
 
 

@@ -37,9 +37,12 @@ PURE_KAPPA = 0.005  # lateral samples: |kappa| below this
 LOWER = (1.0, math.radians(1.0), 0.0)
 UPPER = (8.0, math.radians(20.0), 10.0)
 STARTS = ((2.0, math.radians(6.0), 1.0), (3.0, math.radians(9.0), 1.0))
-MIN_CORNER_SAMPLES = 200  # fewer samples in the corner: nothing to name
+# Fewer lateral samples in the corner: nothing to name. An FE tool's table has a few points
+# per degree (a 1-degree table at three loads past 10 deg: some 30), a rig 100 a second.
+MIN_CORNER_SAMPLES = 20
 MIN_GAIN = 0.5  # the corner's RMS mismatch must fall by at least half ...
-MIN_MISMATCH_SIGMAS = 3.0  # ... from at least this many noise levels
+MIN_MISMATCH_SIGMAS = 3.0  # ... from at least this many noise levels ...
+MIN_MISMATCH_SHARE = 0.01  # ... and this share of the largest |Fy| (a noise-free table)
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,7 @@ def find_sidewall(model: TireModel, sims: Sequence[WheelSeries]) -> SidewallFit 
 
     Returns None when there are too few lateral samples at a deflection above the model's
     nominal; else the fit, ``named`` when it halves the corner's mismatch from at least
-    MIN_MISMATCH_SIGMAS noise levels.
+    MIN_MISMATCH_SIGMAS noise levels and MIN_MISMATCH_SHARE of the largest lateral force.
     """
     lat = [s.select(np.abs(s.kappa) < PURE_KAPPA) for s in sims if s.Fy is not None]
     lat = [s for s in lat if len(s)]
@@ -132,5 +135,6 @@ def find_sidewall(model: TireModel, sims: Sequence[WheelSeries]) -> SidewallFit 
         return SidewallFit(params, n, 0.0, 0.0, sigma, False)
     before = float(np.sqrt(np.mean((pred - y)[corner] ** 2)))
     after = float(np.sqrt(np.mean((resid(best.x) * sigma)[corner] ** 2)))
-    named = before > MIN_MISMATCH_SIGMAS * sigma and after < (1.0 - MIN_GAIN) * before
+    floor = max(MIN_MISMATCH_SIGMAS * sigma, MIN_MISMATCH_SHARE * float(np.max(np.abs(y))))
+    named = before > floor and after < (1.0 - MIN_GAIN) * before
     return SidewallFit(params, n, before, after, sigma, named)
