@@ -448,3 +448,14 @@ def test_holding_is_normal_released_without_inputs_warns(wm):
     for key in ("released_by_wait", "released_by_overflow"):
         level, message, _, _ = level_and_message({key: 2, "forces_out": 2}, True)
         assert level == b"\x01" and message == f"{key} +2"
+
+
+def test_answers_beyond_the_fitted_envelope_are_said_but_not_a_warning():
+    from tire_model_ros.ros.diagnostics import level_and_message
+
+    level, message, _, warn = level_and_message({"outside_envelope": 40, "forces_out": 40}, True)
+    assert (level, warn) == (b"\x00", []) and message == (
+        "ok; outside_envelope +40 (beyond the fitted data)"
+    )
+    _, message, _, _ = level_and_message({"outside_envelope": 3, "load.malformed": 1}, True)
+    assert message == "load.malformed +1; outside_envelope +3 (beyond the fitted data)"

@@ -12,7 +12,9 @@ Per wheel, per period (the counters' increase since the last report):
   slips held for their inputs released without them: the wait bound passed, or an input it
   waited for stopped (``released_by_wait``), or the queue was full (``released_by_overflow``).
   Holding a slip until its inputs catch up (``held``, ``released_caught_up``) is normal.
-- OK, message "ok": none of these: every output is the model on in-range inputs.
+- OK, message "ok": none of these: every output is the model on in-range inputs. Answers on
+  inputs outside the envelope the model's fit covered (``outside_envelope``: in range, but
+  extrapolated) are said after it: ``ok; outside_envelope +40 (beyond the fitted data)``.
 
 The message lists what happened with its count (``out_of_range.temperature +12 (saturated)``);
 the values carry every cumulative counter, the slips held now (``pending``), each input's
@@ -33,6 +35,9 @@ from tire_model_ros.wheel.state import WheelState
 #: Counters whose increase is a warning by itself: a handover that may have lost messages,
 #: slips computed before their inputs caught up (:mod:`tire_model_ros.wheel.hold`).
 _WARNINGS = ("resubscribe_unmatched", "released_by_wait", "released_by_overflow")
+#: Counters said in the message without a warning: the model answered as asked, but beyond
+#: the data it was fitted to.
+_NOTES = {"outside_envelope": "beyond the fitted data"}
 
 
 def _is_warning(key: str) -> bool:
@@ -65,7 +70,9 @@ def level_and_message(
         + (f" ({how}{', still' if k in held else ''})" if k.startswith("out_of_range.") else "")
         for k in lost + warn
     ]
-    return level, "; ".join(parts) if parts else "ok", lost, warn
+    notes = [f"{k} +{delta[k]} ({why})" for k, why in _NOTES.items() if delta.get(k)]
+    head = parts if parts else ["ok"]
+    return level, "; ".join(head + notes), lost, warn
 
 
 def wheel_status(
