@@ -568,6 +568,15 @@ def step_truth(out: Path, wheels: Wheels, diag: Diagnosis) -> None:
         )
 
 
+def _write_without_pressure_and_temperature(tir: Path, start: Path) -> None:
+    """The file as a fit that knows nothing of pressure and temperature starts from (PP*, TT*
+    zero): what the fused fit finds of them comes from the rig and the simulation."""
+    from tire_model_ros.model import TireModel, write_tir
+
+    zero = [f"{k}{a}{i}" for k in ("PP", "TT") for a in "XY" for i in range(1, 5)]
+    write_tir(TireModel.from_file(tir).with_params(dict.fromkeys(zero, 0.0)).tir, start)
+
+
 def step_extend(tir: Path, out: Path) -> None:
     say("6 beyond the rig: extend the model with a simulation (the seed paper)")
     sessions = {"rig": "safe_envelope", "simulation": "special_conditions"}
@@ -587,9 +596,12 @@ def step_extend(tir: Path, out: Path) -> None:
         "rig: loads 40-120 %, pressures 85-115 % of NOMPRES, heating, no temperature channel; "
         "simulation: isothermal, 60/140/220 kPa, up to 160 % load, -10...80 degC, sidewall",
     )
+    start = out / "start.tir"
+    _write_without_pressure_and_temperature(tir, start)
+    say("6", f"{start}: the tyre's file with its pressure and temperature terms zeroed")
     fused = out / "fused.tir"
     stdout = run(
-        [*tool("tire-model"), "fit", str(out / "rig"), "--tir", str(tir), "-o", str(fused),
+        [*tool("tire-model"), "fit", str(out / "rig"), "--tir", str(start), "-o", str(fused),
          "--extend", str(out / "simulation"), "--quiet"],
         "6",
         3600,
