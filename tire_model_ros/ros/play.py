@@ -178,6 +178,7 @@ def play(
     """
     import rclpy
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.signals import SignalHandlerOptions
 
     if not rate >= 0 or not np.isfinite(rate):
         raise ValueError(f"--rate must be >= 0, got {rate}")
@@ -190,7 +191,9 @@ def play(
     )
     own_context = not rclpy.ok()
     if own_context:
-        rclpy.init()
+        # rclpy's own SIGINT/SIGTERM handlers would shut the context down under the last
+        # publish and its acknowledgement wait; stopping is ``should_stop``'s (the CLI's flag)
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("tire_model_player")
     report = PlayReport(dict.fromkeys(sched.topics, 0), dict.fromkeys(sched.topics, True), {})
     try:
