@@ -496,8 +496,8 @@ def test_lenient_reads_what_strict_refuses(client, node1, tmp_path):
     assert not res[0].successful and "PKY4" in res[0].reason, res[0].reason
     res = client.set_parameters(N1, {"lenient": True, "tir_file": str(cut)}, atomically=True)
     assert res.successful, res.reason
-    proc.wait_log("lenient: ", 10)  # the node lists what it filled
-    assert re.search(r"lenient: .*no_pky4\.tir: line \d+: .*PKY4=2\b", proc.log()), proc.log()
+    proc.wait_log("model file: ", 10)  # the node lists what it filled
+    assert re.search(r"model file: .*no_pky4\.tir: line \d+: .*PKY4=2\b", proc.log()), proc.log()
     try:
         model = TireModel.from_file(cut, lenient=True)
         assert model.params["PKY4"] == 2.0  # the documented default

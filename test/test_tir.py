@@ -528,7 +528,10 @@ def test_required_keys_and_bad_values_are_refused_even_when_lenient(tmp_path):
 def test_vendor_and_table_sections_are_kept(tmp_path):
     path = _mangled(tmp_path, "acme.tir", _append("[ACME]", "COLOUR = 'black'", "BATCH = 7"))
     tir = read_tir(path)
-    assert tir.raw_sections[-1].name == "ACME" and tir.notes == ()
+    assert tir.raw_sections[-1].name == "ACME"
+    assert len(tir.notes) == 1 and re.search(
+        r"acme\.tir: line \d+: \[ACME\]: not a Magic Formula section: kept verbatim", tir.notes[0]
+    ), tir.notes  # said, not silently passed over
 
 
 def test_every_version_is_met_by_a_reference_file():

@@ -190,7 +190,8 @@ class TirData:
     preamble : comment lines before the first section.
     filled : coefficients the file's version needs that the file lacked, filled with their
         defaults (only with ``read_tir(..., lenient=True)``).
-    notes : one line per thing ``lenient`` let through (file, line, key, what was done).
+    notes : one line per thing let through (file, line, key, what was done): what ``lenient``
+        filled or accepted, and a vendor's section kept but not read.
     """
 
     path: str | None
@@ -607,6 +608,11 @@ def _check_unknown_sections(parsed: _Parsed, refusals: _Refusals) -> None:
                     ),
                     "section kept verbatim, not read",
                 )  # fmt: skip
+            else:  # a vendor's block ([GOODYEAR], a rig's own): said, kept, not read
+                refusals.notes.append(
+                    f"{parsed.path}: line {header}: [{raw.name}]: not a Magic Formula section: "
+                    "kept verbatim (written back), not read"
+                )
 
 
 def _needed_missing(parsed: _Parsed, version: Version) -> dict[str, list[str]]:

@@ -364,7 +364,7 @@ class TireModelCore(Node):
                 w.slot = w.key
         for s in self.slots.values():
             for note in s.notes:
-                self.get_logger().warning(f"lenient: {note}")
+                self.get_logger().warning(f"model file: {note}")
         self._set_effects(_load_effects(self.get_parameter("effects_file").value))
 
     def _set_effects(self, effects: Effects | None) -> None:
@@ -441,7 +441,7 @@ class TireModelCore(Node):
             self.get_logger().info(f"model loaded: {loaded or 'wheels back on shared model'}")
             for k in redeclare:  # what a lenient read filled or let through, as at start-up
                 for note in slots[k].notes if k in slots else ():
-                    self.get_logger().warning(f"lenient: {note}")
+                    self.get_logger().warning(f"model file: {note}")
 
     def _reject(self, reason: str) -> SetParametersResult:
         self.param_rejections += 1
