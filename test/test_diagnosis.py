@@ -71,10 +71,16 @@ def test_hidden_states_are_first_order_and_recover():
     assert np.allclose(relaxed_slip(a, t, np.full_like(t, 10.0), 0.0), a)
 
 
-def test_concealed_temperature_is_named_first_and_halves_heldout_error(model):
+@pytest.fixture(scope="module")
+def heated(model):
+    """A heating tyre with no temperature channel, and its diagnosis (two tests read it)."""
     wheels, _truth = _session(model, {"heating": True}, omit=["temperature"])
+    return wheels, diagnose(wheels, model, seed=0)
+
+
+def test_concealed_temperature_is_named_first_and_halves_heldout_error(model, heated):
+    wheels, diag = heated
     assert all(w.T is None for w in wheels)
-    diag = diagnose(wheels, model, seed=0)
     assert isinstance(diag, Diagnosis)
     first = diag.effects[0]
     assert first.name == "temperature", diag.details["log"]
@@ -380,7 +386,7 @@ def test_an_effect_is_stable_when_two_fits_do_the_same_to_the_forces():
     assert agree_doing(rms(0.5 * (c + d)), rms(c - d))
 
 
-def test_improved_model_run_forward_as_the_node_runs_it_keeps_the_improvement(model):
+def test_improved_model_run_forward_as_the_node_runs_it_keeps_the_improvement(model, heated):
     """The improved .tir and its effects file, run sample by sample as the node runs them
     (model.states.EffectState: hidden nodes driven by the model's own forces, no temperature
     channel), on the whole recorded session.
@@ -395,8 +401,7 @@ def test_improved_model_run_forward_as_the_node_runs_it_keeps_the_improvement(mo
     from tire_model_ros.demo import offline
     from tire_model_ros.diagnosis.prepare import prepare_wheel
 
-    wheels, _ = _session(model, {"heating": True}, omit=["temperature"])
-    diag = diagnose(wheels, model, seed=0)
+    wheels, diag = heated
     assert diag.effects[0].name == "temperature", diag.details["log"]
     w, prefix = wheels[0], wheels[0].prefix
     fx = diag.node_effects().for_wheel(prefix)
