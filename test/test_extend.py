@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,101 +23,6 @@ FIT_TIMEOUT_S = 900.0
 @pytest.fixture(scope="module")
 def tyre() -> TireModel:
     return TireModel.from_file(DEFAULT_TIR)
-
-
-def fit_extend(d: Path, other: str, out: str) -> subprocess.CompletedProcess[str]:
-    """``tire-model fit d/rig --tir d/start.tir -o d/OUT --extend d/OTHER``, checked to exit 0."""
-    res = subprocess.run(
-        [*TOOL, "fit", str(d / "rig"), "--tir", str(d / "start.tir"), "-o", str(d / out),
-         "--extend", str(d / other)],
-        capture_output=True, text=True, timeout=FIT_TIMEOUT_S,
-    )  # fmt: skip
-    assert res.returncode == 0, res.stderr[-3000:]
-    return res
-
-
-# ------------------------------------------------------------------ a small fused fit
-@pytest.fixture(scope="module")
-def fused(tyre, tmp_path_factory):
-    """rig (safe_envelope: heating, no temperature) + simulation (special_conditions) as an
-    FE tool's table: written as CSV (``export``), brought in with ``import --format csv``;
-    fused from a start file without pressure or temperature terms."""
-    d = tmp_path_factory.mktemp("extend")
-    rig, rig_truth = simulate_session(tyre, "safe_envelope", seed=4, rate_hz=RATE_HZ)
-    sim, sim_truth = simulate_session(tyre, "special_conditions", seed=5, rate_hz=RATE_HZ)
-    write_session(d / "rig", rig, rig_truth)
-    write_session(d / "sim", sim, sim_truth)
-    for cmd in (
-        ["export", str(d / "sim"), "-o", str(d / "fe.csv")],
-        ["import", "--format", "csv", str(d / "fe.csv"), "-o", str(d / "fe")],
-    ):
-        res = subprocess.run([*TOOL, *cmd], capture_output=True, text=True, timeout=300)
-        assert res.returncode == 0, res.stderr
-    zero = [f"PP{a}{i}" for a in "XY" for i in range(1, 5)]
-    zero += [f"TT{a}{i}" for a in "XY" for i in range(1, 5)]
-    write_tir(tyre.with_params(dict.fromkeys(zero, 0.0)).tir, d / "start.tir")
-    return d, fit_extend(d, "fe", "out.tir")
-
-
-def test_fused_fit_names_the_difference_and_widens_the_ranges(fused):
-    d, res = fused
-    assert "the rig differs from it by: temperature" in res.stdout, res.stdout
-    assert "concealed temperature corrected" in res.stderr
-    out = TireModel.from_file(d / "out.tir")
-    P = out.params
-    assert P["PRESMIN"] <= 60e3 and P["PRESMAX"] >= 299e3  # the start file: 200 / 400 kPa
-    assert 0.35 * FNOMIN < P["FZMIN"] < 0.42 * FNOMIN and P["FZMAX"] >= 1.59 * FNOMIN
-    assert P["TEMPMIN"] <= -10.0 and P["TEMPMAX"] >= 80.0
-    assert P["FZMAX"] < 1.62 * FNOMIN and P["PRESMIN"] > 58e3  # ... and no more
-    ext = json.loads((d / "out_fit_report" / "extension.json").read_text())
-    assert ext["comparison"]["words"][0] == "temperature"
-    assert ext["ranges"]["PRESMIN"] == {"start": 200e3, "fused": P["PRESMIN"]}
-    rows = len((d / "fe.csv").read_text().splitlines()) - 1  # the FE table is the SIM
-    assert ext["sources"]["simulation_samples"] == rows
-    # the simulation's friction is the tyre's: the rig's level found at about 1; the rig's
-    # loads and pressures all simulated (special_conditions' overlap block)
-    friction = ext["comparison"]["rig_friction_of_simulation"]
-    assert 0.95 < friction["LMUX"] < 1.05 and 0.95 < friction["LMUY"] < 1.05, friction
-    assert ext["comparison"]["rig_at_simulated_load_and_pressure"] > 0.9
-    md = (d / "out_fit_report" / "extension.md").read_text()
-    assert "Friction: the rig's is" in md and "% at its temperatures too" in md
-    for name in ("extension.md", "envelope.png", "seed_pressure.png", "seed_load.png",
-                 "seed_temperature.png", "fit_report.md", "simulation/fit_report.md"):  # fmt: skip
-        assert (d / "out_fit_report" / name).stat().st_size > 0, name
-
-
-def test_fused_envelope_says_which_source_informed_each_region(fused):
-    d, _ = fused
-    env = Envelope.from_tir(TireModel.from_file(d / "out.tir").tir)
-    assert env is not None
-    cell = env.index(np.array([1.6 * FNOMIN]), np.array([60e3]), np.array([25.0]))[0]
-    assert env.cells[tuple(cell)] == SIMULATION  # low pressure, high load: simulated only
-    cell = env.index(np.array([0.7 * FNOMIN]), np.array([260e3]), np.array([35.0]))[0]
-    assert env.cells[tuple(cell)] & RIG  # the rig's own conditions
-    assert not env.contains_one(1.6 * FNOMIN, 60e3, 80.0)  # never hot at low pressure
-
-
-def test_fused_model_follows_the_tyre_beyond_the_rig(fused, tyre):
-    """Against the noise-free tyre at 60 kPa and 80 degC, away from the sidewall corner: the
-    fused model within a few per cent of the force range; the start file far off."""
-    d, _ = fused
-    truth, _ = simulate_session(
-        tyre, "special_conditions", rate_hz=RATE_HZ, effects={"noise": False, "sidewall": False}
-    )
-    w = truth[0]
-    lat = (np.abs(w.kappa) == 0) & (np.abs(w.alpha) < np.radians(8.0))
-    lon = np.abs(w.alpha) == 0
-    groups = {"60 kPa": (w.p == 60e3) & (w.Fz < 1.25 * FNOMIN), "80 degC": w.T == 80.0}
-    models = {k: TireModel.from_file(d / f"{k}.tir") for k in ("out", "start")}
-    for name, g in groups.items():
-        for c, sel in (("Fx", g & lon & (w.kappa != 0)), ("Fy", g & lat & (w.alpha != 0))):
-            y = getattr(w, c)[sel]
-            nrmse = {}
-            for k, m in models.items():
-                o = m.evaluate(w.Fz[sel], w.kappa[sel], w.alpha[sel], 0.0, w.Vx[sel], w.p[sel],
-                               w.T[sel])  # fmt: skip
-                nrmse[k] = float(np.sqrt(np.mean((getattr(o, c) - y) ** 2)) / np.ptp(y))
-            assert nrmse["out"] < 0.03 and nrmse["out"] < nrmse["start"] / 2, (name, c, nrmse)
 
 
 def test_rig_at_an_unknown_temperature_counts_as_the_ambient_in_the_ranges(tyre):
@@ -270,3 +174,107 @@ def test_node_counts_inputs_outside_the_envelope(tyre, tmp_path):
     finally:
         proc.stop()
         client.close()
+
+
+# ------------------------------------------------------------------ a small fused fit
+@pytest.fixture(scope="module", autouse=True)
+def fused_job(tyre, tmp_path_factory):
+    """rig (safe_envelope: heating, no temperature) + simulation (special_conditions) as an
+    FE tool's table: written as CSV (``export``), brought in with ``import --format csv``;
+    fused from a start file without pressure or temperature terms. The fit is started when
+    the module starts and runs beside the tests that do not read it (they come first)."""
+    d = tmp_path_factory.mktemp("extend")
+    rig, rig_truth = simulate_session(tyre, "safe_envelope", seed=4, rate_hz=RATE_HZ)
+    sim, sim_truth = simulate_session(tyre, "special_conditions", seed=5, rate_hz=RATE_HZ)
+    write_session(d / "rig", rig, rig_truth)
+    write_session(d / "sim", sim, sim_truth)
+    for cmd in (
+        ["export", str(d / "sim"), "-o", str(d / "fe.csv")],
+        ["import", "--format", "csv", str(d / "fe.csv"), "-o", str(d / "fe")],
+    ):
+        res = subprocess.run([*TOOL, *cmd], capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
+    zero = [f"PP{a}{i}" for a in "XY" for i in range(1, 5)]
+    zero += [f"TT{a}{i}" for a in "XY" for i in range(1, 5)]
+    write_tir(tyre.with_params(dict.fromkeys(zero, 0.0)).tir, d / "start.tir")
+    cmd = [*TOOL, "fit", str(d / "rig"), "--tir", str(d / "start.tir"), "-o", str(d / "out.tir"),
+           "--extend", str(d / "fe")]  # fmt: skip
+    with (d / "fit.stdout").open("w") as out, (d / "fit.stderr").open("w") as err:
+        proc = subprocess.Popen(cmd, stdout=out, stderr=err, text=True)
+    yield d, proc
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
+
+
+@pytest.fixture(scope="module")
+def fused(fused_job):
+    """The fused fit's result, once it has ended (checked to exit 0)."""
+    d, proc = fused_job
+    rc = proc.wait(timeout=FIT_TIMEOUT_S)
+    res = subprocess.CompletedProcess(
+        proc.args, rc, (d / "fit.stdout").read_text(), (d / "fit.stderr").read_text()
+    )
+    assert rc == 0, res.stderr[-3000:]
+    return d, res
+
+
+def test_fused_fit_names_the_difference_and_widens_the_ranges(fused):
+    d, res = fused
+    assert "the rig differs from it by: temperature" in res.stdout, res.stdout
+    assert "concealed temperature corrected" in res.stderr
+    out = TireModel.from_file(d / "out.tir")
+    P = out.params
+    assert P["PRESMIN"] <= 60e3 and P["PRESMAX"] >= 299e3  # the start file: 200 / 400 kPa
+    assert 0.35 * FNOMIN < P["FZMIN"] < 0.42 * FNOMIN and P["FZMAX"] >= 1.59 * FNOMIN
+    assert P["TEMPMIN"] <= -10.0 and P["TEMPMAX"] >= 80.0
+    assert P["FZMAX"] < 1.62 * FNOMIN and P["PRESMIN"] > 58e3  # ... and no more
+    ext = json.loads((d / "out_fit_report" / "extension.json").read_text())
+    assert ext["comparison"]["words"][0] == "temperature"
+    assert ext["ranges"]["PRESMIN"] == {"start": 200e3, "fused": P["PRESMIN"]}
+    rows = len((d / "fe.csv").read_text().splitlines()) - 1  # the FE table is the SIM
+    assert ext["sources"]["simulation_samples"] == rows
+    # the simulation's friction is the tyre's: the rig's level found at about 1; the rig's
+    # loads and pressures all simulated (special_conditions' overlap block)
+    friction = ext["comparison"]["rig_friction_of_simulation"]
+    assert 0.95 < friction["LMUX"] < 1.05 and 0.95 < friction["LMUY"] < 1.05, friction
+    assert ext["comparison"]["rig_at_simulated_load_and_pressure"] > 0.9
+    md = (d / "out_fit_report" / "extension.md").read_text()
+    assert "Friction: the rig's is" in md and "% at its temperatures too" in md
+    for name in ("extension.md", "envelope.png", "seed_pressure.png", "seed_load.png",
+                 "seed_temperature.png", "fit_report.md", "simulation/fit_report.md"):  # fmt: skip
+        assert (d / "out_fit_report" / name).stat().st_size > 0, name
+
+
+def test_fused_envelope_says_which_source_informed_each_region(fused):
+    d, _ = fused
+    env = Envelope.from_tir(TireModel.from_file(d / "out.tir").tir)
+    assert env is not None
+    cell = env.index(np.array([1.6 * FNOMIN]), np.array([60e3]), np.array([25.0]))[0]
+    assert env.cells[tuple(cell)] == SIMULATION  # low pressure, high load: simulated only
+    cell = env.index(np.array([0.7 * FNOMIN]), np.array([260e3]), np.array([35.0]))[0]
+    assert env.cells[tuple(cell)] & RIG  # the rig's own conditions
+    assert not env.contains_one(1.6 * FNOMIN, 60e3, 80.0)  # never hot at low pressure
+
+
+def test_fused_model_follows_the_tyre_beyond_the_rig(fused, tyre):
+    """Against the noise-free tyre at 60 kPa and 80 degC, away from the sidewall corner: the
+    fused model within a few per cent of the force range; the start file far off."""
+    d, _ = fused
+    truth, _ = simulate_session(
+        tyre, "special_conditions", rate_hz=RATE_HZ, effects={"noise": False, "sidewall": False}
+    )
+    w = truth[0]
+    lat = (np.abs(w.kappa) == 0) & (np.abs(w.alpha) < np.radians(8.0))
+    lon = np.abs(w.alpha) == 0
+    groups = {"60 kPa": (w.p == 60e3) & (w.Fz < 1.25 * FNOMIN), "80 degC": w.T == 80.0}
+    models = {k: TireModel.from_file(d / f"{k}.tir") for k in ("out", "start")}
+    for name, g in groups.items():
+        for c, sel in (("Fx", g & lon & (w.kappa != 0)), ("Fy", g & lat & (w.alpha != 0))):
+            y = getattr(w, c)[sel]
+            nrmse = {}
+            for k, m in models.items():
+                o = m.evaluate(w.Fz[sel], w.kappa[sel], w.alpha[sel], 0.0, w.Vx[sel], w.p[sel],
+                               w.T[sel])  # fmt: skip
+                nrmse[k] = float(np.sqrt(np.mean((getattr(o, c) - y) ** 2)) / np.ptp(y))
+            assert nrmse["out"] < 0.03 and nrmse["out"] < nrmse["start"] / 2, (name, c, nrmse)
