@@ -162,6 +162,40 @@ def test_delay_models_the_load_on_the_forces_clock_only_where_the_load_moves(mod
         assert not np.array_equal(inp["alpha"], ctx.wheel.x("alpha"))
 
 
+def test_combined_slip_can_show_where_a_small_drive_slip_meets_a_slip_angle(model):
+    """A car corners under a little drive torque: a slip ratio of a few thousandths, below any
+    'both slips swept' threshold, while its Fx is weighted by the slip angle. Combined slip is
+    tried, and its region is where a usual weighting would change a force beyond the noise:
+    the cornering part, not the straight."""
+    from tire_model_ros.diagnosis.effects.static import CombinedSlip
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+    from tire_model_ros.diagnosis.result import set_noise
+
+    wheels, _ = _session(model, {"noise": True})
+    w = wheels[0]
+
+    def context(series):  # type: ignore[no-untyped-def]
+        ctx = make_context(prepare_wheel(series, model, np.random.default_rng(0)), model)
+        set_noise(ctx)
+        return ctx
+
+    pure = context(w)
+    assert CombinedSlip.propose(pure) == []
+    braking = np.sin(2.0 * np.pi * w.t / 20.0) > 0.9  # a short stop now and then: Fx swept
+    kappa = np.where(braking, -0.03, 0.004)
+    noise = np.random.default_rng(1).normal(0.0, 15.0, len(w.t))
+    Fx = 60e3 * kappa * np.cos(w.alpha) + noise  # a linear Fx at a usual slip stiffness
+    driven = dataclasses.replace(w, kappa=kappa, Fx=Fx)
+    ctx = context(driven)
+    (m,) = CombinedSlip.propose(ctx)
+    region = m.support(ctx)
+    assert region is not None
+    alpha = np.abs(ctx.wheel.x("alpha"))
+    driving = ~braking
+    assert region[driving & (alpha > np.radians(5.0))].mean() > 0.9
+    assert not region[driving & (alpha < np.radians(0.5))].any()
+
+
 def test_friction_step_is_named_drift_and_located(model):
     """A belt friction step: drift, in the step form, at the rig's time; model error gone."""
     wheels, truth = _session(model, {"mu_step": {"ratio": 0.93}})

@@ -1,8 +1,8 @@
 """Static terms: force offsets, and the Magic Formula's camber and combined-slip terms.
 
 An offset acts everywhere; camber and combined slip only in their region of the operating
-range (their ``support``): away from zero inclination, where both slips act (the weighting
-functions are 1 in pure slip, eqs. 4.E51, 4.E59).
+range (their ``support``): away from zero inclination, where the other slip weighs a force
+(the weighting functions are 1 in pure slip, eqs. 4.E51, 4.E59).
 """
 
 from __future__ import annotations
@@ -14,9 +14,11 @@ import numpy as np
 from ..prepare import Context
 from .base import Array, EffectModel, Index, Mask, Param, coefficient_params
 
-ACTIVE_KAPPA, ACTIVE_ALPHA = 0.01, np.radians(1.0)  # both above: combined slip acts
 CAMBER_MIN_RAD = np.radians(0.5)
-COMBINED_MIN_SHARE = 0.05  # of the samples with both slips, for combined slip to be tried
+# A usual weighting's B (rBx1, rBy1 about 10, C = 1): where it would change a force by more
+# than the noise is where combined slip can show.
+USUAL_B_COMBINED = 10.0
+COMBINED_MIN_SHARE = 0.05  # of the samples where it can show, for combined slip to be tried
 
 
 class Offset(EffectModel):
@@ -116,15 +118,27 @@ class CombinedSlip(_CoefficientRefit):
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
-        both = _both(ctx)
+        both = _combined_region(ctx)
         ok = both.mean() > COMBINED_MIN_SHARE and ctx.informative["x"] and ctx.informative["y"]
         return [cls(ctx)] if ok else []
 
     def support(self, ctx: Context) -> Mask | None:
-        return _both(ctx)
+        return _combined_region(ctx)
 
 
-def _both(ctx: Context) -> Mask:
+def _combined_region(ctx: Context) -> Mask:
+    """Where a usual combined-slip weighting would change a measured force by more than its
+    noise: Fx by 1 - Gxa at the slip angle, Fy by 1 - Gyk at the slip ratio (eqs. 4.E54,
+    4.E62 with B = USUAL_B_COMBINED, C = 1). A car cornering under a little drive torque has a
+    slip ratio of a few thousandths, and its Fx is still weighted by the slip angle."""
     w = ctx.wheel
-    both = (np.abs(w.x("kappa")) >= ACTIVE_KAPPA) & (np.abs(w.x("alpha")) >= ACTIVE_ALPHA)
-    return np.asarray(both, dtype=np.bool_)
+
+    def departs(slip: Array) -> Array:
+        return np.asarray(1.0 - 1.0 / np.sqrt(1.0 + (USUAL_B_COMBINED * slip) ** 2))
+
+    acts = np.zeros(w.n, dtype=np.bool_)
+    for ch, slip in (("Fx", np.tan(w.x("alpha"))), ("Fy", w.x("kappa"))):
+        if ch in w.meas:
+            f = np.nan_to_num(np.abs(w.meas[ch]))
+            acts |= departs(slip) * f > ctx.sigma[ch]
+    return acts
