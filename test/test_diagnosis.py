@@ -394,6 +394,32 @@ def test_rare_sweeps_are_stratified_over_all_folds():
     assert 2 not in rare_folds(four, np.random.default_rng(0)).values()
 
 
+def test_a_sweep_reaching_far_beyond_the_usual_slip_is_split_between_the_selection_folds():
+    """A car's one hard corner (8 degrees where every other corner reaches 2 to 3) is the only
+    sweep at its slip: in one selection fold only, a fit on the other fold would be scored on
+    an extrapolation. It is a rare condition, split between the folds like a rare pressure."""
+    from tire_model_ros.diagnosis.folds import assign_folds
+    from tire_model_ros.fit.sweeps import Segment
+
+    t = np.arange(0.0, 400.0, 0.01)
+    reach = np.array([2.0, 3.0, 2.5, 2.2, 2.8, 2.4, 3.0, 2.6, 8.0, 2.5, 2.1, 2.9, 2.3, 2.7])
+    n = len(t) // len(reach)
+    alpha = np.radians(np.concatenate([r * np.sin(np.linspace(0, 4 * np.pi, n)) for r in reach]))
+    t = t[: len(alpha)]
+    segments = [
+        Segment(np.arange(i, min(i + n // 8, len(t))), "ramp", {"alpha": 1}, i // n)
+        for i in range(0, len(t), n // 8)
+    ]
+    inputs = {
+        "kappa": 0.01 * np.sin(t), "alpha": alpha, "gamma": np.zeros_like(t),
+        "Fz": np.full_like(t, 4000.0), "p": None,
+    }  # fmt: skip
+    for seed in range(5):
+        fold = assign_folds(segments, t, np.random.default_rng(seed), inputs, block_s=25.0)
+        hard = np.abs(alpha) > np.radians(5.0)
+        assert set(np.unique(fold[hard])) == {0, 1}, seed
+
+
 def test_unmeasured_torque_leaves_the_mz_coefficients_alone(model):
     """A wrench whose torque is not measured (zeros) is no Mz to refit the trail to."""
     wheels, _ = _session(model, {"heating": True}, omit=["temperature"])

@@ -25,6 +25,9 @@ BLOCK_S = 10.0  # a continuous run (no pause) is cut into blocks of about this l
 MIN_RARE_PER_FOLD = 2
 RARE_PRESSURE = 0.05  # a sweep 5 % off the session's usual pressure is at a rare condition
 RARE_CAMBER_RAD = np.radians(0.5)
+# A block that sweeps a slip to this many times the usual sweep's reach is at a rare
+# condition too (a car's one hard corner): the peak and beyond, seen in few sweeps.
+RARE_REACH = 2.0
 # A block sweeps a slip when it reaches this share of the session's largest value of it (the
 # slip held while the other is swept, or the end of a sweep in the next block, does not).
 MIN_SWEEP_SHARE = 0.2
@@ -79,14 +82,16 @@ def assign_folds(
 ) -> npt.NDArray[np.int8]:
     """Fold 0/1 (selection) or 2 (final held-out) per sample, whole blocks, balanced in time.
 
-    Blocks at a rare condition (pressure or camber away from the session's usual value) are
-    few and are stratified per kind of sweep (see :func:`rare_folds`). The other blocks are
+    Blocks at a rare condition (pressure or camber away from the session's usual value, or a
+    slip swept far beyond the usual reach) are few and are stratified per kind of sweep (see
+    :func:`rare_folds`). The other blocks are
     taken three at a time in time order, each triple getting a random permutation of the
     folds, so that every fold spans the whole session.
     """
     fold = np.zeros(len(t), dtype=np.int8)
     bl = blocks(segments, t, block_s)
-    rare = [rare_kind(segments, b, inputs) for b in bl]
+    reach = usual_reach(segments, bl, inputs)
+    rare = [rare_kind(segments, b, inputs, reach) for b in bl]
     rare_fold = rare_folds(rare, rng)
     common = []
     for j, b in enumerate(bl):
@@ -169,17 +174,47 @@ def rare_folds(rare: Sequence[Rare | None], rng: np.random.Generator) -> dict[in
     return out
 
 
+def _reach(segments: Sequence[Segment], block: Sequence[int], slip: Array) -> float:
+    return float(np.max(np.abs(slip[np.concatenate([segments[i].index for i in block])])))
+
+
+def usual_reach(
+    segments: Sequence[Segment], bl: Sequence[Sequence[int]], inputs: Mapping[str, Array | None]
+) -> dict[str, float]:
+    """Per slip ('kappa', 'alpha'): the median reach of the blocks that sweep it."""
+    out = {}
+    for key in ("kappa", "alpha"):
+        slip = inputs[key]
+        assert slip is not None
+        reach = np.array([_reach(segments, b, slip) for b in bl])
+        swept = reach[reach >= MIN_SWEEP_SHARE * float(np.max(np.abs(slip)))]
+        out[key] = float(np.median(swept)) if len(swept) else np.inf
+    return out
+
+
 def rare_kind(
-    segments: Sequence[Segment], block: Sequence[int], inputs: Mapping[str, Array | None]
+    segments: Sequence[Segment],
+    block: Sequence[int],
+    inputs: Mapping[str, Array | None],
+    reach: Mapping[str, float] | None = None,
 ) -> Rare | None:
     """The block's :data:`Rare` if it runs at a rare condition, else None.
 
     'x'/'y' is the slip the sweep excites; the condition is its pressure and camber, rounded
-    to the tolerances that make them rare; the load is rounded to LOAD_STEP.
+    to the tolerances that make them rare, and how far the block sweeps either slip beyond
+    the usual ``reach`` (:func:`usual_reach`) in factors of RARE_REACH; the load is rounded to
+    LOAD_STEP.
     """
     idx = np.concatenate([segments[i].index for i in block])
     rare = False
     cond = []
+    for key, usual in (reach or {}).items():
+        slip = inputs[key]
+        assert slip is not None
+        level = int(np.floor(np.log(max(_reach(segments, block, slip), 1e-12) / usual)
+                             / np.log(RARE_REACH)))  # fmt: skip
+        rare |= level >= 1
+        cond.append(max(level, 0))
     p = inputs.get("p")
     if p is not None:
         ref, here = float(np.median(p)), float(np.median(p[idx]))
