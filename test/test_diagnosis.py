@@ -196,6 +196,27 @@ def test_combined_slip_can_show_where_a_small_drive_slip_meets_a_slip_angle(mode
     assert not region[driving & (alpha < np.radians(0.5))].any()
 
 
+def test_a_concealed_pressure_rising_like_a_ramp_is_named_pressure_not_drift(model):
+    """A sealed tyre on a car that never pauses warms its gas like a ramp: that it followed the
+    heat cannot be told, that the pressure rose can (stiffness and grip move in the file's
+    pressure proportions, a friction drift moves grip alone). The forces here are the file's
+    at a pressure rising 12 % over the session, with the rig's noise; no pressure recorded."""
+    wheels, _ = _session(model, {"noise": True})
+    w = wheels[0]
+    assert w.p is not None
+    clean = model.evaluate(w.Fz, w.kappa, w.alpha, w.gamma, w.Vx, w.p, w.T)
+    p = w.p * (1.0 + 0.12 * (w.t - w.t[0]) / (w.t[-1] - w.t[0]))
+    risen = model.evaluate(w.Fz, w.kappa, w.alpha, w.gamma, w.Vx, p, w.T)
+    forces = {
+        ch: getattr(w, ch) + getattr(risen, ch) - getattr(clean, ch) for ch in ("Fx", "Fy", "Mz")
+    }
+    sealed = dataclasses.replace(w, p=None, **forces)
+    diag = diagnose([sealed], model, seed=0)
+    names = [e.name for e in diag.effects]
+    assert names[0] == "pressure", names
+    assert "drift" not in names
+
+
 def test_friction_step_is_named_drift_and_located(model):
     """A belt friction step: drift, in the step form, at the rig's time; model error gone."""
     wheels, truth = _session(model, {"mu_step": {"ratio": 0.93}})

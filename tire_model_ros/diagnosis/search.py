@@ -81,7 +81,7 @@ class Selection:
     chosen: list[Key]  # strongest first
     explained: dict[Key, float]  # share of the baseline's held-out MSE of Fx and Fy (pooled;
     # the mean of what it removes added to the baseline alone and to all the others)
-    explained_per_wheel: dict[Key, dict[str, float]]
+    explained_per_wheel: dict[Key, dict[str, float]]  # the same, on each wheel
     accepted: dict[Key, Joint]  # the step that admitted each
     log: list[str]
 
@@ -173,6 +173,7 @@ def search(
     cur = base
     accepted: dict[Key, Joint] = {}
     alone: dict[Key, float] = {}  # what each explains added to the baseline alone
+    alone_wheel: dict[Key, dict[str, float]] = {}  # ... and on each wheel
     for step in range(MAX_EFFECTS):
         words = {library[k][next(iter(library[k]))].word for k in cur.keys}
         trials = [
@@ -182,6 +183,12 @@ def search(
         ]
         if step == 0:
             alone = {t.keys[-1]: _share(base.score, t.score, base.score) for t in trials}
+            alone_wheel = {
+                t.keys[-1]: {
+                    p: _share(b.score, t.wheels[p].score, b.score) for p, b in base.wheels.items()
+                }
+                for t in trials
+            }
         for t in trials:
             assert t.vs is not None
             log.append(f"step {step}: {_name(library, t.keys[-1])} held-out {t.score.rms:.3f} "
@@ -201,8 +208,12 @@ def search(
     # The Shapley value of each effect for two effects, its two-term estimate beyond: the mean
     # of what it removes added to the baseline alone and added to all the others.
     explained = {k: 0.5 * (unique[k] + alone.get(k, unique[k])) for k in cur.keys}
+    explained_wheel = {
+        k: {p: 0.5 * (u + alone_wheel.get(k, {}).get(p, u)) for p, u in per_wheel[k].items()}
+        for k in cur.keys
+    }
     chosen = sorted(cur.keys, key=lambda k: -explained[k])
-    return Selection(base, cur, chosen, explained, per_wheel, accepted, log)
+    return Selection(base, cur, chosen, explained, explained_wheel, accepted, log)
 
 
 def _name(library: dict[Key, dict[str, EffectModel]], key: Key) -> str:

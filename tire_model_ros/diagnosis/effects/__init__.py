@@ -9,7 +9,7 @@ from ..prepare import Context
 from .base import EffectModel, Param
 from .baseline import Scaling
 from .friction import FrictionStep, SpeedLaw, SpeedTable, Trend, Wear
-from .pressure import Leak, RecordedPressure, SealedGas
+from .pressure import PressureTrend, RecordedPressure, SealedGas
 from .sidewall import SidewallContact
 from .static import Camber, CombinedSlip, Offset
 from .thermal import HiddenThermal, RecordedThermal
@@ -20,7 +20,7 @@ LIBRARY: tuple[type[EffectModel], ...] = (
     HiddenThermal,
     RecordedPressure,
     SealedGas,
-    Leak,
+    PressureTrend,
     Relaxation,
     Delay,
     Offset,

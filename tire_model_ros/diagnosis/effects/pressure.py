@@ -115,17 +115,22 @@ class SealedGas(EffectModel):
         return {"T_amb_C": ctx.T_amb, "gas": Node(float(x[0]), float(x[1]) * 1e-3)}
 
 
-class Leak(EffectModel):
-    """Concealed: a slow leak, the pressure falling in time (no link to heat), through the
-    file's pressure terms. Its control is a plain friction trend (drift)."""
+class PressureTrend(EffectModel):
+    """Concealed: the pressure changing linearly in time through the file's pressure terms -
+    a slow leak (no link to heat), or a rise no channel explains (a sealed tyre on a car
+    that never pauses warms its gas like a ramp: whether it followed the heat cannot be told
+    there, that the pressure changed can). Its control is a plain friction trend (drift):
+    a pressure moves stiffness and grip in the file's proportions, a drift grip alone."""
 
     stable_in_time = False  # a leak slows as the pressure falls: each half sees its own part
     word = "pressure"
-    label = "slow leak: pressure falling linearly in time, file's terms"
+    label = "pressure changing linearly in time (a slow leak, or a rise), file's terms"
     concealed = True
 
     def __init__(self, ctx: Context):
-        super().__init__([Param("loss_per_session", 0.05, 0.0, 0.8, 0.02)])
+        super().__init__(
+            [Param("loss_per_session", 0.05, -0.5, 0.8, 0.02)], [{"loss_per_session": -0.05}]
+        )
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
