@@ -439,6 +439,8 @@ def test_a_sweep_reaching_far_beyond_the_usual_slip_is_split_between_the_selecti
         fold = assign_folds(segments, t, np.random.default_rng(seed), inputs, block_s=25.0)
         hard = np.abs(alpha) > np.radians(5.0)
         assert set(np.unique(fold[hard])) == {0, 1}, seed
+    unswept = {**inputs, "kappa": np.zeros_like(t)}  # a slip held at zero: no reach to exceed
+    assert set(np.unique(assign_folds(segments, t, np.random.default_rng(0), unswept))) <= {0, 1, 2}
 
 
 def test_unmeasured_torque_leaves_the_mz_coefficients_alone(model):

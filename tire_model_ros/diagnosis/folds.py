@@ -84,9 +84,9 @@ def assign_folds(
 
     Blocks at a rare condition (pressure or camber away from the session's usual value, or a
     slip swept far beyond the usual reach) are few and are stratified per kind of sweep (see
-    :func:`rare_folds`). The other blocks are
-    taken three at a time in time order, each triple getting a random permutation of the
-    folds, so that every fold spans the whole session.
+    :func:`rare_folds`). The other blocks are taken three at a time in time order, each
+    triple getting a random permutation of the folds, so that every fold spans the whole
+    session.
     """
     fold = np.zeros(len(t), dtype=np.int8)
     bl = blocks(segments, t, block_s)
@@ -181,14 +181,16 @@ def _reach(segments: Sequence[Segment], block: Sequence[int], slip: Array) -> fl
 def usual_reach(
     segments: Sequence[Segment], bl: Sequence[Sequence[int]], inputs: Mapping[str, Array | None]
 ) -> dict[str, float]:
-    """Per slip ('kappa', 'alpha'): the median reach of the blocks that sweep it."""
+    """Per slip ('kappa', 'alpha') that some block sweeps: the median reach of those blocks."""
     out = {}
     for key in ("kappa", "alpha"):
         slip = inputs[key]
         assert slip is not None
         reach = np.array([_reach(segments, b, slip) for b in bl])
         swept = reach[reach >= MIN_SWEEP_SHARE * float(np.max(np.abs(slip)))]
-        out[key] = float(np.median(swept)) if len(swept) else np.inf
+        usual = float(np.median(swept)) if len(swept) else 0.0
+        if usual > 0.0:  # a slip held at zero all session has no reach to exceed
+            out[key] = usual
     return out
 
 
@@ -211,10 +213,10 @@ def rare_kind(
     for key, usual in (reach or {}).items():
         slip = inputs[key]
         assert slip is not None
-        level = int(np.floor(np.log(max(_reach(segments, block, slip), 1e-12) / usual)
-                             / np.log(RARE_REACH)))  # fmt: skip
+        ratio = _reach(segments, block, slip) / usual
+        level = int(np.floor(np.log(ratio) / np.log(RARE_REACH))) if ratio >= 1.0 else 0
         rare |= level >= 1
-        cond.append(max(level, 0))
+        cond.append(level)
     p = inputs.get("p")
     if p is not None:
         ref, here = float(np.median(p)), float(np.median(p[idx]))
