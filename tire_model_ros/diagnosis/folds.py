@@ -208,12 +208,16 @@ def rare_kind(
     LOAD_STEP.
     """
     idx = np.concatenate([segments[i].index for i in block])
+    kappa, alpha = inputs["kappa"], inputs["alpha"]
+    assert kappa is not None and alpha is not None
+    reached = {
+        "kappa": float(np.max(np.abs(kappa[idx]))),
+        "alpha": float(np.max(np.abs(alpha[idx]))),
+    }
     rare = False
     cond = []
     for key, usual in (reach or {}).items():
-        slip = inputs[key]
-        assert slip is not None
-        ratio = _reach(segments, block, slip) / usual
+        ratio = reached[key] / usual
         level = int(np.floor(np.log(ratio) / np.log(RARE_REACH))) if ratio >= 1.0 else 0
         rare |= level >= 1
         cond.append(level)
@@ -230,10 +234,7 @@ def rare_kind(
     cond.append(round(dg / RARE_CAMBER_RAD))
     if not rare:
         return None
-    kappa, alpha = inputs["kappa"], inputs["alpha"]
-    assert kappa is not None and alpha is not None
-    k = float(np.max(np.abs(kappa[idx])))
-    a = float(np.max(np.abs(alpha[idx])))
+    k, a = reached["kappa"], reached["alpha"]
     k_all, a_all = float(np.max(np.abs(kappa))), float(np.max(np.abs(alpha)))
     if k < max(0.01, MIN_SWEEP_SHARE * k_all) and a < max(np.radians(1.0), MIN_SWEEP_SHARE * a_all):
         return None  # a pause, a hold or the tail of a sweep at the condition: nothing to fit

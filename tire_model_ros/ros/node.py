@@ -90,7 +90,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from operator import attrgetter
 from pathlib import Path
@@ -362,9 +362,7 @@ class TireModelCore(Node):
                 changed = self._declare_coefficients(w.key, own.model, overrides=True)
                 self.slots[w.key] = self._with_updates(own, changed)
                 w.slot = w.key
-        for s in self.slots.values():
-            for note in s.notes:
-                self.get_logger().warning(f"model file: {note}")
+        self._say_notes(self.slots.values())
         self._set_effects(_load_effects(self.get_parameter("effects_file").value))
 
     def _set_effects(self, effects: Effects | None) -> None:
@@ -439,9 +437,13 @@ class TireModelCore(Node):
             self.reloads += 1
             loaded = ", ".join(f"{k or 'shared'}={slots[k].path}" for k in redeclare if k in slots)
             self.get_logger().info(f"model loaded: {loaded or 'wheels back on shared model'}")
-            for k in redeclare:  # what a lenient read filled or let through, as at start-up
-                for note in slots[k].notes if k in slots else ():
-                    self.get_logger().warning(f"model file: {note}")
+            self._say_notes(slots[k] for k in redeclare if k in slots)  # as at start-up
+
+    def _say_notes(self, slots: Iterable[Slot]) -> None:
+        """What reading the model files let through (a lenient fill, a vendor's section)."""
+        for slot in slots:
+            for note in slot.notes:
+                self.get_logger().warning(f"model file: {note}")
 
     def _reject(self, reason: str) -> SetParametersResult:
         self.param_rejections += 1
