@@ -22,7 +22,11 @@ from .effects.base import Array, Index, Mask
 from .fitting import Fit, Score, errors
 from .prepare import Context
 
-MIN_REL_RMSE_GAIN = 0.04  # >= 4 % lower held-out RMS (noise-normalised, all channels)
+MIN_REL_RMSE_GAIN = 0.04  # >= 4 % lower held-out RMS where an effect acts (support)
+# >= 8 % of the current model's held-out mean square error beyond the noise: what is left to
+# explain, not what is left plus the noise (next to a large effect a weaker one would otherwise
+# need a gain that grows with the noise it cannot remove)
+MIN_EXCESS_SHARE = 0.08
 MIN_GAIN_PER_SAMPLE = 0.08  # >= 8 % of the noise variance per held-out sample
 MIN_BLOCK_FRACTION = 0.6  # better on >= 60 % of the held-out sweeps that change materially
 MAX_SIGN_P = 0.05  # sign test over the changed held-out sweeps ...
@@ -40,6 +44,7 @@ class Comparison:
     """A candidate's held-out score against the current model's."""
 
     rel_gain: float  # 1 - rms_new / rms_current
+    excess_share: float  # mean square gain / the current mean square error beyond the noise
     gain_per_sample: float  # in noise variances
     block_fraction: float  # share of the materially changed sweeps that improved
     t_stat: float  # per-sweep gains: mean / standard error
@@ -49,7 +54,7 @@ class Comparison:
     @property
     def significant(self) -> bool:
         return (
-            self.rel_gain >= MIN_REL_RMSE_GAIN
+            self.excess_share >= MIN_EXCESS_SHARE
             and self.gain_per_sample >= MIN_GAIN_PER_SAMPLE
             and self.block_fraction >= MIN_BLOCK_FRACTION
             and self.t_stat > 0.0
@@ -64,7 +69,8 @@ class Comparison:
 
     def text(self) -> str:
         return (
-            f"gain {self.rel_gain:+.3f} gps {self.gain_per_sample:+.3f} "
+            f"gain {self.rel_gain:+.3f} xs {self.excess_share:+.2f} "
+            f"gps {self.gain_per_sample:+.3f} "
             f"sweeps {self.block_fraction:.2f} t {self.t_stat:.1f} p {self.p_sign:.3f} "
             f"w {self.weighted_fraction:.2f}"
         )
@@ -74,6 +80,7 @@ def compare(cur: Score, new: Score) -> Comparison:
     """Held-out comparison of ``new`` with ``cur`` (the same rows)."""
     rel = 1.0 - new.rms / max(cur.rms, 1e-12)
     gps = (cur.total - new.total) / max(cur.n, 1)
+    xs = gps / max(cur.rms**2 - 1.0, 1e-9)
     a = np.array(list(cur.per_block.values()))
     d = np.array([v - new.per_block.get(k, v) for k, v in cur.per_block.items()])
     # A sweep counts when its squared error changed materially: by more than one noise
@@ -86,7 +93,13 @@ def compare(cur: Score, new: Score) -> Comparison:
     k, n = int(np.sum(changed > 0)), len(changed)
     p = float(binom.sf(k - 1, n, 0.5)) if n else 1.0
     wfrac = float(np.sum(np.clip(changed, 0, None)) / np.sum(np.abs(changed))) if n else 0.0
-    return Comparison(rel, gps, frac, t, p, wfrac)
+    return Comparison(rel, xs, gps, frac, t, p, wfrac)
+
+
+def consistently_better(c: Comparison) -> bool:
+    """Better on most of the changed held-out sweeps (sign test) and on average: what a
+    near-tie in held-out RMS needs for the data, not the parameter count, to decide it."""
+    return c.p_sign <= MAX_SIGN_P and c.t_stat > 0.0
 
 
 MIN_SUPPORT_SHARE = 0.7  # of the held-out gain (noise units) made inside the support

@@ -224,8 +224,9 @@ def _none(ctx: Context, summaries: dict[str, dict[str, Any]]) -> Effect:
         worst,
         where_text(summaries[worst], worst),
         "no model of missing physics beat the baseline on held-out sweeps by the margins "
-        f"(>= {ev.MIN_REL_RMSE_GAIN:.0%} RMS, >= {ev.MIN_GAIN_PER_SAMPLE:.0%} of the noise "
-        "variance per sample, most sweeps) and passed its evidence tests",
+        f"(>= {ev.MIN_EXCESS_SHARE:.0%} of its mean square error beyond the noise, "
+        f">= {ev.MIN_GAIN_PER_SAMPLE:.0%} of the noise variance per sample, most sweeps) and "
+        "passed its evidence tests",
     )
 
 

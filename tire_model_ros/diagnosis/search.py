@@ -226,7 +226,8 @@ def _n_params(t: Joint, library: dict[Key, dict[str, EffectModel]]) -> int:
 
 def _ranked(trials: Sequence[Joint], library: dict[Key, dict[str, EffectModel]]) -> list[Joint]:
     """The significant trials, best held-out first, the fewest parameters first among those
-    within OCCAM_MARGIN of the best."""
+    within OCCAM_MARGIN of the best, unless a richer one of those predicts the held-out
+    sweeps consistently better than the simpler (the data tell them apart: no tie)."""
     ok = sorted(
         (t for t in trials if t.vs is not None and t.vs.significant), key=lambda t: t.score.rms
     )
@@ -234,6 +235,12 @@ def _ranked(trials: Sequence[Joint], library: dict[Key, dict[str, EffectModel]])
         return []
     near = [t for t in ok if t.score.rms <= ok[0].score.rms * (1.0 + OCCAM_MARGIN)]
     near.sort(key=lambda t: (_n_params(t, library), t.score.rms))
+    first = near[0]
+    for t in near[1:]:
+        vs = ev.compare(first.score, t.score)
+        if t.score.rms < first.score.rms and ev.consistently_better(vs):
+            first = t
+    near = [first] + [t for t in near if t is not first]
     return near + [t for t in ok if t not in near]
 
 
@@ -265,11 +272,12 @@ def _support(t: Joint, cur: Joint) -> tuple[bool, str]:
     acc = np.zeros(4)
     any_region = False
     for c, n, e in _new(t, cur):
-        mask = e.support(n.ctx)
-        if mask is None:
-            continue
-        any_region = True
-        acc += ev.region_sums(n.ctx, c.fits, n.fits, [test for _, test in splits(n.ctx)], mask)
+        for i, (_, test) in enumerate(splits(n.ctx)):
+            mask = e.support(n.ctx, n.fits[i].x[-e.n :])
+            if mask is None:
+                break
+            any_region = True
+            acc += ev.region_sums(n.ctx, c.fits[i : i + 1], n.fits[i : i + 1], [test], mask)
     if not any_region:
         return True, ""
     rel, share, n_in = ev.region_gains(acc)

@@ -72,10 +72,12 @@ class EffectModel:
         """The models of this kind the recording can tell anything about ([]: none)."""
         return []
 
-    def support(self, ctx: Context) -> Mask | None:
-        """Samples where this physics can change the forces (None: anywhere). Most of what it
-        gains on held-out sweeps must come from there: a gain made elsewhere is the refitted
-        baseline standing in for another effect."""
+    def support(self, ctx: Context, x: Array | None = None) -> Mask | None:
+        """Samples where this physics can change the forces (None: anywhere); with ``x``, this
+        model's fitted parameters, where the fitted model does (a region whose bounds are
+        the tyre's own, fitted). Most of what it gains on held-out sweeps must come from
+        there: a gain made elsewhere is the refitted baseline standing in for another
+        effect."""
         return None
 
     def controls(self, ctx: Context) -> list[EffectModel]:

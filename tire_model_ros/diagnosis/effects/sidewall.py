@@ -2,8 +2,9 @@
 force drops beyond the peak (the seed paper: at 60 kPa near 10 deg of slip angle), only in
 that corner of the operating range (PHYSICS.md: gated by the deflection, Fz / p).
 
-Where the corner lies is the tyre's own: the gate's threshold is fitted within the deflections
-the session reaches beyond the force peak, starting from their upper quantiles.
+Where the corner lies is the tyre's own: the gate's threshold is fitted within the upper half
+of the deflections the session reaches beyond the force peak (a corner, not the whole range),
+and the model must beat the same drop at every deflection (its control: the gate tested).
 """
 
 from __future__ import annotations
@@ -16,11 +17,15 @@ from tire_model_ros.model.states import relative_deflection, sidewall_factor
 
 from ..prepare import Context
 from .base import Array, EffectModel, Index, Mask, Param
+from .curve import curve_shapes
 
-BEYOND_PEAK = 0.5  # of the session's largest |alpha|: samples past about the force peak
-CORNER_QUANTILE = 0.7  # the corner: past the peak and above this quantile of the deflection
+# Beyond about the force peak: the file model's Fy curve has flattened to this share of its
+# cornering stiffness (the tyre's own peak, not the session's largest slip angle, which one
+# hard corner of a car can set).
+BEYOND_PEAK_SLOPE = 0.3
 MIN_SPREAD = 1.05  # the deflections past the peak must span this ratio (95th / 50th pct.)
-MIN_CORNER_SHARE = 0.01  # of the samples in the corner, for the effect to be tried
+MIN_CORNER_SHARE = 0.01  # of the samples past the peak above their median deflection
+DROP_ACTS = 1e-3  # a factor this far below 1: the fitted drop acts (its support)
 
 
 def deflection(ctx: Context) -> Array:
@@ -32,29 +37,40 @@ def deflection(ctx: Context) -> Array:
 
 
 def _beyond(ctx: Context) -> Mask:
-    a = np.abs(ctx.wheel.x("alpha"))
-    return a > BEYOND_PEAK * float(np.max(a))
+    return np.asarray(curve_shapes(ctx)["slip_alpha"] < BEYOND_PEAK_SLOPE, dtype=np.bool_)
 
 
 class SidewallContact(EffectModel):
     """Fy scaled by 1 - d g(rho) max(|alpha| - alpha_c, 0): g a smooth gate that opens as the
-    relative deflection rho passes its threshold (:func:`~..model.states.sidewall_factor`)."""
+    relative deflection rho passes its threshold (:func:`~..model.states.sidewall_factor`).
+
+    ``gated`` False is its control: the same drop beyond alpha_c at every deflection.
+    """
 
     word = "sidewall_contact"
-    label = "force drop beyond a slip angle, gated by the deflection"
 
-    def __init__(self, ctx: Context):
+    def __init__(self, ctx: Context, gated: bool = True):
+        self.gated = gated
+        self.label = (
+            "force drop beyond a slip angle, gated by the deflection"
+            if gated
+            else "control: the same drop at every deflection"
+        )
         rho = deflection(ctx)[_beyond(ctx)]
-        lo, hi = float(np.min(rho)), float(np.max(rho))
-        q = {k: float(np.quantile(rho, k)) for k in (0.6, 0.8, 0.9)}
+        q = {k: float(np.quantile(rho, k)) for k in (0.5, 0.6, 0.8, 0.9)}
+        hi = max(float(np.max(rho)), q[0.5] * 1.001)
         a_max = float(np.max(np.abs(ctx.wheel.x("alpha"))))
+        # The ungated control holds its threshold far below every deflection (gate open).
+        th = Param("deflection_threshold", q[0.8], q[0.5], hi, 0.05 * q[0.8], fitted=gated)
+        if not gated:
+            th = Param("deflection_threshold", 1e-3 * q[0.5], 0.0, hi, 1.0, fitted=False)
         super().__init__(
             [
-                Param("deflection_threshold", q[0.8], lo, max(hi, lo * 1.001), 0.05 * q[0.8]),
+                th,
                 Param("alpha_contact_rad", 0.6 * a_max, 0.2 * a_max, a_max, 0.02),
                 Param("drop_per_rad", 0.5, 0.0, 10.0, 0.3),
             ],
-            [{"deflection_threshold": q[0.6]}, {"deflection_threshold": q[0.9]}],
+            [{"deflection_threshold": q[0.6]}, {"deflection_threshold": q[0.9]}] if gated else [],
         )
 
     @classmethod
@@ -64,10 +80,21 @@ class SidewallContact(EffectModel):
         rho = deflection(ctx)[_beyond(ctx)]
         if len(rho) < 10 or np.quantile(rho, 0.95) < MIN_SPREAD * np.quantile(rho, 0.5):
             return []  # the session does not reach a corner of higher deflection
-        return [cls(ctx)] if float(np.mean(_corner(ctx))) > MIN_CORNER_SHARE else []
+        corner = _beyond(ctx) & (deflection(ctx) > float(np.quantile(rho, 0.5)))
+        return [cls(ctx)] if float(np.mean(corner)) > MIN_CORNER_SHARE else []
 
-    def support(self, ctx: Context) -> Mask | None:
-        return _corner(ctx)
+    def controls(self, ctx: Context) -> list[EffectModel]:
+        return [SidewallContact(ctx, gated=False)] if self.gated else []
+
+    def support(self, ctx: Context, x: Array | None = None) -> Mask | None:
+        """Where the fitted drop acts (before a fit: past the peak, above the median
+        deflection there)."""
+        if x is None:
+            rho = deflection(ctx)
+            return _beyond(ctx) & (rho > float(np.quantile(rho[_beyond(ctx)], 0.5)))
+        alpha = ctx.wheel.x("alpha")
+        f = sidewall_factor(deflection(ctx), alpha, (float(x[0]), float(x[1]), float(x[2])))
+        return np.asarray(f < 1.0 - DROP_ACTS, dtype=np.bool_)
 
     def output(self, x: Array, ctx: Context, out: dict[str, Array], rows: Index) -> None:
         params = (float(x[0]), float(x[1]), float(x[2]))
@@ -76,8 +103,3 @@ class SidewallContact(EffectModel):
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return {"sidewall": (float(x[0]), float(x[1]), float(x[2]))}
-
-
-def _corner(ctx: Context) -> Mask:
-    rho, beyond = deflection(ctx), _beyond(ctx)
-    return beyond & (rho > float(np.quantile(rho[beyond], CORNER_QUANTILE)))

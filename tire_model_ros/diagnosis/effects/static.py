@@ -86,7 +86,7 @@ class Camber(_CoefficientRefit):
         g = ctx.wheel.x("gamma")
         return [cls(ctx)] if float(np.ptp(g)) > CAMBER_MIN_RAD else []
 
-    def support(self, ctx: Context) -> Mask | None:
+    def support(self, ctx: Context, x: Array | None = None) -> Mask | None:
         return np.asarray(np.abs(ctx.wheel.x("gamma")) > CAMBER_MIN_RAD, dtype=np.bool_)
 
 
@@ -122,7 +122,7 @@ class CombinedSlip(_CoefficientRefit):
         ok = both.mean() > COMBINED_MIN_SHARE and ctx.informative["x"] and ctx.informative["y"]
         return [cls(ctx)] if ok else []
 
-    def support(self, ctx: Context) -> Mask | None:
+    def support(self, ctx: Context, x: Array | None = None) -> Mask | None:
         return _combined_region(ctx)
 
 
