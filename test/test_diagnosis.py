@@ -17,7 +17,8 @@ from conftest import MF61_TIR, ROOT, TOOL
 
 from tire_model_ros.diagnosis import Diagnosis, diagnose
 from tire_model_ros.diagnosis.dynamics import relaxed_slip, thermal_state_K
-from tire_model_ros.diagnosis.evidence import agree_doing, rms
+from tire_model_ros.diagnosis.evidence import agree_doing, compare, rms
+from tire_model_ros.diagnosis.fitting import Score
 from tire_model_ros.diagnosis.folds import SPLIT, rare_folds
 from tire_model_ros.diagnosis.result import MZ_COEFS
 from tire_model_ros.model import TireModel
@@ -505,3 +506,86 @@ def test_improved_model_run_forward_as_the_node_runs_it_keeps_the_improvement(mo
     raw_node = rss(offline(diag.improved_model, fx, w), meas)
     raw_base = rss(offline(model, None, w), meas)
     assert raw_node < 0.5 * raw_base, (raw_node, raw_base)
+
+
+def _score(per_block: list[float], noise_units_per_sample: float) -> Score:
+    """A held-out score of sweeps of 100 samples each (noise units)."""
+    blocks = {("w", i): v for i, v in enumerate(per_block)}
+    n = 100 * len(per_block)
+    assert sum(per_block) == pytest.approx(noise_units_per_sample * n)
+    return Score(sum(per_block), n, {"Fx": 1.0, "Fy": 1.0}, {"Fx": n, "Fy": n}, blocks)
+
+
+def test_a_weaker_effect_beside_a_strong_one_is_judged_on_what_is_left_beyond_the_noise():
+    """After a large effect is in, the current model's held-out error is the noise (1 per
+    sample) plus a remainder: an effect that removes 20 % of that remainder, on every sweep,
+    is significant, though it lowers the RMS (noise included) by less than 4 %; a gain far
+    below the remainder (1 %) is not, and at the noise there is nothing left to explain."""
+    cur = _score([160.0] * 40, 1.6)  # remainder 0.6 per sample
+    weak = _score([148.0] * 20 + [149.0] * 20, 1.485)  # 0.115 per sample: 19 % of it
+    c = compare(cur, weak)
+    assert c.rel_gain < 0.04 and c.significant, c.text()
+    assert not compare(cur, _score([159.4] * 40, 1.594)).significant  # 1 % of the remainder
+    at_noise = _score([100.0] * 40, 1.0)
+    assert not compare(at_noise, _score([96.0] * 20 + [104.0] * 20, 1.0)).significant
+
+
+def test_a_near_tie_goes_to_the_richer_model_only_when_most_sweeps_prefer_it():
+    """Two models within the Occam margin: the fewer parameters win unless the richer one is
+    better on most held-out sweeps (a constant-speed rig's relaxation against a delay)."""
+    from tire_model_ros.diagnosis.effects.base import EffectModel, Param
+    from tire_model_ros.diagnosis.search import Joint, Trial, _ranked
+
+    class Simple(EffectModel):
+        word, label = "time_delay", "two"
+
+        def __init__(self) -> None:
+            super().__init__([Param("a", 0, 0, 1, 1), Param("b", 0, 0, 1, 1)])
+
+    class Rich(EffectModel):
+        word, label = "relaxation", "three"
+
+        def __init__(self) -> None:
+            super().__init__([Param(k, 0, 0, 1, 1) for k in "abc"])
+
+    cur = _score([200.0] * 40, 2.0)
+    library = {("Simple", "two"): {"w": Simple()}, ("Rich", "three"): {"w": Rich()}}
+
+    def joint(key, per_block):  # type: ignore[no-untyped-def]
+        sc = _score(per_block, sum(per_block) / 100 / len(per_block))
+        j = Joint({"w": Trial(None, [], [], sc, [sc, sc])}, [key])  # type: ignore[arg-type]
+        j.vs = compare(cur, sc)
+        return j
+
+    simple = joint(("Simple", "two"), [149.0, 151.0] * 20)
+    tied = joint(("Rich", "three"), [138.0] * 20 + [160.0] * 20)  # better on half the sweeps
+    assert _ranked([tied, simple], library)[0] is simple
+    richer = joint(("Rich", "three"), [141.0] * 36 + [206.0] * 4)  # better on 36 of 40
+    assert richer.score.rms < simple.score.rms * 1.02
+    assert _ranked([richer, simple], library)[0] is richer
+
+
+def test_sidewall_contact_acts_where_its_fitted_gate_opens_and_has_an_ungated_control(model):
+    """Sidewall contact's region is the fitted model's own (past the threshold deflection,
+    beyond the contact slip angle), not a fixed quantile of the session; the corner is the
+    upper half of the deflections past the force peak; its control drops at any deflection."""
+    from tire_model_ros.diagnosis.effects.sidewall import SidewallContact, deflection
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"noise": True})
+    w = wheels[0]
+    ramp = dataclasses.replace(w, Fz=np.linspace(0.5, 1.6, len(w.t)) * model.params["FNOMIN"])
+    ctx = make_context(prepare_wheel(ramp, model, np.random.default_rng(0)), model)
+    (m,) = SidewallContact.propose(ctx)
+    rho, alpha = deflection(ctx), np.abs(ctx.wheel.x("alpha"))
+    th_lo = m.params[0].lo
+    assert th_lo > float(np.min(rho))  # the gate cannot open over the whole range
+    x = np.array([1.3, np.radians(6.0), 1.0])
+    acts = m.support(ctx, x)
+    assert acts is not None
+    inside = (rho > 1.4) & (alpha > np.radians(7.0))
+    assert inside.sum() > 10 and acts[inside].all()
+    assert not acts[(rho < 1.1) | (alpha < np.radians(6.0))].any()
+    (control,) = m.controls(ctx)
+    assert not control.params[0].fitted and control.params[0].x0 < float(np.min(rho))
+    assert control.controls(ctx) == []
