@@ -585,7 +585,7 @@ def test_sidewall_contact_acts_where_its_fitted_gate_opens_and_has_an_ungated_co
     assert acts is not None
     inside = (rho > 1.4) & (alpha > np.radians(7.0))
     assert inside.sum() > 10 and acts[inside].all()
-    assert not acts[(rho < 1.1) | (alpha < np.radians(6.0))].any()
+    assert not acts[(rho < 0.95) | (alpha < np.radians(6.0))].any()
     (control,) = m.controls(ctx)
     assert not control.params[0].fitted and control.params[0].x0 < float(np.min(rho))
     assert control.controls(ctx) == []

@@ -25,7 +25,7 @@ from .curve import curve_shapes
 BEYOND_PEAK_SLOPE = 0.3
 MIN_SPREAD = 1.05  # the deflections past the peak must span this ratio (95th / 50th pct.)
 MIN_CORNER_SHARE = 0.01  # of the samples past the peak above their median deflection
-DROP_ACTS = 0.005  # a factor this far below 1 (about the noise): the fitted drop acts there
+DROP_ACTS = 1e-3  # a factor this far below 1: the fitted drop acts there (its support)
 
 
 def deflection(ctx: Context) -> Array:
