@@ -22,7 +22,7 @@ from .effects.base import Array, Index, Mask
 from .fitting import Fit, Score, errors
 from .prepare import Context
 
-MIN_REL_RMSE_GAIN = 0.04  # >= 4 % lower held-out RMS where an effect acts (support)
+MIN_REL_RMSE_GAIN = 0.04  # >= 4 % lower held-out RMS where it acts (support; half: the screen)
 # >= 8 % of the current model's held-out mean square error beyond the noise: what is left to
 # explain, not what is left plus the noise (next to a large effect a weaker one would otherwise
 # need a gain that grows with the noise it cannot remove)
