@@ -40,6 +40,12 @@ def _beyond(ctx: Context) -> Mask:
     return np.asarray(curve_shapes(ctx)["slip_alpha"] < BEYOND_PEAK_SLOPE, dtype=np.bool_)
 
 
+def _corner(ctx: Context) -> Mask:
+    """Past the peak and above the median deflection there."""
+    rho, beyond = deflection(ctx), _beyond(ctx)
+    return beyond & (rho > float(np.quantile(rho[beyond], 0.5)))
+
+
 class SidewallContact(EffectModel):
     """Fy scaled by 1 - d g(rho) max(|alpha| - alpha_c, 0): g a smooth gate that opens as the
     relative deflection rho passes its threshold (:func:`~..model.states.sidewall_factor`).
@@ -61,9 +67,11 @@ class SidewallContact(EffectModel):
         hi = max(float(np.max(rho)), q[0.5] * 1.001)
         a_max = float(np.max(np.abs(ctx.wheel.x("alpha"))))
         # The ungated control holds its threshold far below every deflection (gate open).
-        th = Param("deflection_threshold", q[0.8], q[0.5], hi, 0.05 * q[0.8], fitted=gated)
-        if not gated:
-            th = Param("deflection_threshold", 1e-3 * q[0.5], 0.0, hi, 1.0, fitted=False)
+        th = (
+            Param("deflection_threshold", q[0.8], q[0.5], hi, 0.05 * q[0.8])
+            if gated
+            else Param("deflection_threshold", 1e-3 * q[0.5], 0.0, hi, 1.0, fitted=False)
+        )
         super().__init__(
             [
                 th,
@@ -80,8 +88,7 @@ class SidewallContact(EffectModel):
         rho = deflection(ctx)[_beyond(ctx)]
         if len(rho) < 10 or np.quantile(rho, 0.95) < MIN_SPREAD * np.quantile(rho, 0.5):
             return []  # the session does not reach a corner of higher deflection
-        corner = _beyond(ctx) & (deflection(ctx) > float(np.quantile(rho, 0.5)))
-        return [cls(ctx)] if float(np.mean(corner)) > MIN_CORNER_SHARE else []
+        return [cls(ctx)] if float(np.mean(_corner(ctx))) > MIN_CORNER_SHARE else []
 
     def controls(self, ctx: Context) -> list[EffectModel]:
         return [SidewallContact(ctx, gated=False)] if self.gated else []
@@ -90,8 +97,7 @@ class SidewallContact(EffectModel):
         """Where the fitted drop acts (before a fit: past the peak, above the median
         deflection there)."""
         if x is None:
-            rho = deflection(ctx)
-            return _beyond(ctx) & (rho > float(np.quantile(rho[_beyond(ctx)], 0.5)))
+            return _corner(ctx)
         alpha = ctx.wheel.x("alpha")
         f = sidewall_factor(deflection(ctx), alpha, (float(x[0]), float(x[1]), float(x[2])))
         return np.asarray(f < 1.0 - DROP_ACTS, dtype=np.bool_)
