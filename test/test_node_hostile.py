@@ -75,7 +75,7 @@ class Box:
             with self.lock:
                 self.items.append(msg)
 
-        client.node.create_subscription(msg_type, topic, cb, qos)
+        self.subscription = client.node.create_subscription(msg_type, topic, cb, qos)
 
     def by_stamp(self) -> dict[int, object]:
         with self.lock:
@@ -86,9 +86,16 @@ class Box:
 
 
 def diag(client: RosClient):
+    """A new /diagnostics subscription, matched to every publisher the graph knows: a test
+    that moves a simulated clock once gets one array, which an unmatched reader would miss."""
     from diagnostic_msgs.msg import DiagnosticArray
 
-    return Box(client, DiagnosticArray, "/diagnostics", RosClient.qos(100))
+    box = Box(client, DiagnosticArray, "/diagnostics", RosClient.qos(100))
+    known = client.node.count_publishers
+
+    wait_for(lambda: box.subscription.get_publisher_count() >= known("/diagnostics") > 0, 30,
+             "the /diagnostics subscription matched")  # fmt: skip
+    return box
 
 
 def status(box: Box, name: str, after_ns: int = 0):
