@@ -589,3 +589,39 @@ def test_sidewall_contact_acts_where_its_fitted_gate_opens_and_has_an_ungated_co
     (control,) = m.controls(ctx)
     assert not control.params[0].fitted and control.params[0].x0 < float(np.min(rho))
     assert control.controls(ctx) == []
+
+
+def test_a_tyre_effect_is_fitted_to_the_wheels_of_a_car_with_one_parameter_set(model):
+    """Sidewall contact on two wheels of one tyre: the loaded one runs its sweeps at one
+    deflection, so on it alone a drop gated by the deflection is no better than the same
+    drop at every deflection (its control); the other reaches the same slip angles at a third
+    of the load without a drop. One parameter set fitted to both tells the gate: named, the
+    same on both wheels, acting on the loaded one only. (The drop here is a linear ramp in
+    the slip angle with a hard gate, not the diagnosis' logistic form.)"""
+    from tire_model_ros.diagnosis.effects.sidewall import deflection
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"noise": True})
+    w, rng = wheels[0], np.random.default_rng(7)
+    FN = model.params["FNOMIN"]
+
+    def wheel(prefix: str, load: float, drop: float):
+        Fz = load * FN * (1.0 + 0.002 * rng.standard_normal(len(w.t)))
+        out = model.evaluate(Fz, w.kappa, w.alpha, w.gamma, w.Vx, w.p, w.T)
+        beyond = np.clip((np.abs(w.alpha) - np.radians(8.0)) / np.radians(4.0), 0.0, None)
+        Fy = out.Fy * (1.0 - drop * beyond)
+        noise = [20.0 * rng.standard_normal(len(w.t)) for _ in range(2)]
+        return dataclasses.replace(w, prefix=prefix, Fz=Fz, Fx=out.Fx + noise[0],
+                                   Fy=Fy + noise[1], Mx=None, My=None, Mz=out.Mz)  # fmt: skip
+
+    loaded, light = wheel("/car/fl", 1.5, 0.15), wheel("/car/fr", 0.5, 0.0)
+    rho = deflection(make_context(prepare_wheel(loaded, model, np.random.default_rng(0)), model))
+    assert np.quantile(rho, 0.95) < 1.05 * np.quantile(rho, 0.05)  # one deflection
+    diag = diagnose([loaded, light], model)
+    log = "\n".join(diag.details["log"])
+    assert diag.effects[0].name == "sidewall_contact", log
+    fx = [diag.node_effects().for_wheel(p) for p in ("/car/fl", "/car/fr")]
+    assert fx[0] is not None and fx[1] is not None and fx[0].sidewall == fx[1].sidewall, log
+    ex = {p: next(e.explained or 0.0 for e in d.effects if e.name == "sidewall_contact")
+          for p, d in diag.wheels.items()}  # fmt: skip
+    assert ex["/car/fl"] > 0.3 and ex["/car/fr"] < 0.05 * ex["/car/fl"], (ex, log)

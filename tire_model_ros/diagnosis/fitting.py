@@ -119,6 +119,77 @@ def fit(
     def fun(xt: Array) -> Array:
         return residuals(models, full(xt), ctx, rows)
 
+    names = [p.name for m in models for p in m.params]
+    res = _least_squares(fun, x0, free, lo, hi, scale, names, models[-1].starts, max_nfev)
+    return Fit(
+        models, settle(models, full(res.x), ctx, rows), float(res.cost), len(res.fun), res.jac, free
+    )
+
+
+def fit_shared(
+    parts: Sequence[tuple[Sequence[EffectModel], Context, Index, Array, Mask]],
+    max_nfev: int = MAX_NFEV,
+) -> list[Fit]:
+    """One parameter vector of the last model of every part fitted to all their rows at once
+    (a tyre's effect on the wheels of a car), with each part's own free parameters (its
+    baseline); each part is (models, context, rows, the other models' parameters, which of
+    them are free). Returns each part's fit (the shared parameters not ``free`` in it)."""
+    e = parts[0][0][-1]
+    lo_e, hi_e = bounds([e])
+    x0_e = np.clip(e.x0, lo_e, hi_e)
+    free_e = np.array([p.fitted for p in e.params], dtype=bool)
+    heads = []
+    for ms, _, _, xh, fh in parts:
+        lo, hi = bounds(ms[:-1])
+        fh = np.asarray(fh, bool) & np.array([p.fitted for m in ms[:-1] for p in m.params])
+        heads.append((np.clip(np.asarray(xh, float), lo, hi), fh, lo, hi, ms[:-1]))
+    x0 = np.concatenate([x0_e[free_e]] + [xh[fh] for xh, fh, *_ in heads])
+    lo = np.concatenate([lo_e[free_e]] + [lo[fh] for _, fh, lo, _, _ in heads])
+    hi = np.concatenate([hi_e[free_e]] + [hi[fh] for _, fh, _, hi, _ in heads])
+    scale = np.concatenate(
+        [np.array([p.scale for p in e.params])[free_e]]
+        + [np.array([p.scale for m in ms for p in m.params])[fh] for _, fh, _, _, ms in heads]
+    )
+    cuts = np.cumsum([int(free_e.sum())] + [int(fh.sum()) for _, fh, *_ in heads])
+
+    def vectors(xt: Array) -> list[Array]:
+        th = x0_e.copy()
+        th[free_e] = xt[: cuts[0]]
+        out = []
+        for k, (xh, fh, *_) in enumerate(heads):
+            x = xh.copy()
+            x[fh] = xt[cuts[k] : cuts[k + 1]]
+            out.append(np.concatenate([x, th]))
+        return out
+
+    def fun(xt: Array) -> Array:
+        xs = vectors(xt)
+        return np.concatenate(
+            [
+                residuals(ms, x, ctx, rows)
+                for (ms, ctx, rows, _, _), x in zip(parts, xs, strict=True)
+            ]
+        )
+
+    # the starts name the shared parameters; the wheels' own are not named
+    names = [p.name for p, f in zip(e.params, free_e, strict=True) if f]
+    names += [""] * (len(x0) - len(names))
+    res = _least_squares(fun, x0, np.ones(len(x0), bool), lo, hi, scale, names, e.starts, max_nfev)
+    fits = []
+    for (ms, ctx, rows, _, _), x, (_, fh, *_) in zip(parts, vectors(res.x), heads, strict=True):
+        r = residuals(ms, x, ctx, rows)
+        free = np.concatenate([fh, np.zeros(e.n, bool)])
+        fits.append(Fit(list(ms), settle(ms, x, ctx, rows), 0.5 * float(r @ r), len(r), None, free))
+    return fits
+
+
+def _least_squares(  # type: ignore[no-untyped-def]
+    fun, x0: Array, free: Mask, lo: Array, hi: Array, scale: Array, names: list[str],
+    starts: Sequence[dict[str, float]], max_nfev: int,
+):  # fmt: skip
+    """Trust-region reflective least squares of the ``free`` entries of ``x0``, from the
+    best of ``x0`` and the alternative ``starts`` (each briefly tried first)."""
+
     def solve(x_start: Array, nfev: int):  # type: ignore[no-untyped-def]
         return least_squares(
             fun,
@@ -133,22 +204,18 @@ def fit(
             diff_step=1e-4,
         )
 
-    starts = [x0[free]]
-    names = [p.name for m in models for p in m.params]
-    for st in models[-1].starts if models else []:
+    tries = [x0[free]]
+    for st in starts:
         xs = x0.copy()
         for name, v in st.items():
             if name in names and free[names.index(name)]:
                 xs[names.index(name)] = v
-        starts.append(np.clip(xs, lo, hi)[free])
-    xt = starts[0]
-    if len(starts) > 1:
-        trial = [solve(xs, max(6, max_nfev // 6)) for xs in starts]
+        tries.append(np.clip(xs, lo, hi)[free])
+    xt = tries[0]
+    if len(tries) > 1:
+        trial = [solve(xs, max(6, max_nfev // 6)) for xs in tries]
         xt = min(trial, key=lambda r: r.cost).x
-    res = solve(xt, max_nfev)
-    return Fit(
-        models, settle(models, full(res.x), ctx, rows), float(res.cost), len(res.fun), res.jac, free
-    )
+    return solve(xt, max_nfev)
 
 
 def settle(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> Array:

@@ -26,7 +26,7 @@ from .fitting import fit, residuals, uncertainty
 from .locate import channel_summary, where_text
 from .predict import coefficients, model_inputs, predict, split_x
 from .prepare import Context, prepare_wheel
-from .search import Selection
+from .search import Selection, held
 
 FINAL_MAX_NFEV = 80
 # The aligning moment's trail and residual-torque coefficients (MF 6.1 base and load terms, as
@@ -138,7 +138,9 @@ def finish(prefix: str, sel: Selection) -> WheelDiagnosis:
     w, rows_ab = ctx.wheel, ctx.rows["ab"]
     models = trial.models
     x0 = np.mean([f.x for f in trial.fits], axis=0)
-    final = fit(models, ctx, rows_ab, x0, max_nfev=FINAL_MAX_NFEV)
+    # a tyre effect keeps the parameters it was fitted with to every wheel
+    free = held(models, sel.final.shared)
+    final = fit(models, ctx, rows_ab, x0, max_nfev=FINAL_MAX_NFEV, free=free)
     base = sel.baseline.wheels[prefix].models
     base_fit = fit(base, ctx, rows_ab, x0[: base[0].n])
     base_m, xb = _with_mz(ctx, base, base_fit.x, log)

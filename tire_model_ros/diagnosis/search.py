@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import evidence as ev
-from .effects.base import Array, EffectModel, Index, Mask
-from .fitting import Fit, Score, fit, merge, score
+from .effects.base import Array, EffectModel, Index, Mask, shared
+from .fitting import Fit, Score, fit, fit_shared, merge, score
 from .predict import predict
 from .prepare import Context
 
@@ -57,6 +57,7 @@ class Joint:
 
     wheels: dict[str, Trial]
     keys: list[Key] = field(default_factory=list)  # the effects in, in order of joining
+    shared: frozenset[Key] = frozenset()  # the tyre effects fitted to the wheels together
     vs: ev.Comparison | None = None  # against the model it was built from
     notes: list[str] = field(default_factory=list)  # what the evidence tests found
 
@@ -120,34 +121,82 @@ def cross_validate(
     return Trial(ctx, list(models), fits, merge(scores), scores)
 
 
-def add(cur: Trial, e: EffectModel, everything: bool = False) -> Trial:
+def held(models: Sequence[EffectModel], keys: Iterable[Key]) -> Mask:
+    """Per parameter: False for those of the models of ``keys`` (fitted elsewhere: a tyre
+    effect's, to every wheel at once), True for the others."""
+    hold = set(keys)
+    return np.concatenate([np.full(m.n, _key(m) not in hold) for m in models])
+
+
+def _free(cur: Trial, e: EffectModel, everything: bool, hold: Iterable[Key]) -> Mask:
+    """What adding ``e`` to ``cur`` fits: the baseline and ``e`` (``everything``: all the
+    earlier effects too), never the parameters of ``hold``."""
+    n_base, n_prev = cur.models[0].n, sum(m.n for m in cur.models[1:])
+    free = np.concatenate([np.ones(n_base, bool), np.full(n_prev, everything), np.ones(e.n, bool)])
+    return free & held([*cur.models, e], hold)
+
+
+def add(cur: Trial, e: EffectModel, everything: bool = False, hold: Iterable[Key] = ()) -> Trial:
     """``cur`` plus ``e``: the new parameters and the baseline's fitted, the earlier effects'
-    held (``everything``: all fitted)."""
-    models = [*cur.models, e]
-    free = None
-    if not everything:
-        n_base, n_prev = cur.models[0].n, sum(m.n for m in cur.models[1:])
-        free = np.concatenate([np.ones(n_base, bool), np.zeros(n_prev, bool), np.ones(e.n, bool)])
+    held (``everything``: all fitted but those of ``hold``)."""
     x0s = [np.concatenate([f.x, e.x0]) for f in cur.fits]
-    return cross_validate(models, cur.ctx, x0s, free, screen=None if everything else cur)
+    free = _free(cur, e, everything, hold)
+    return cross_validate([*cur.models, e], cur.ctx, x0s, free, screen=None if everything else cur)
 
 
-def without(cur: Trial, key: Key) -> Trial:
-    """``cur`` with the model of ``key`` taken out and the rest refitted."""
+def add_shared(
+    cur: dict[str, Trial], models: dict[str, EffectModel], everything: bool, hold: Iterable[Key]
+) -> dict[str, Trial]:
+    """Each wheel's ``cur`` plus a tyre effect: one parameter set fitted to all the wheels'
+    training folds at once, with each wheel's baseline (``everything``: its other effects
+    too)."""
+    fits: dict[str, list[Fit]] = {p: [] for p in models}
+    scores: dict[str, list[Score]] = {p: [] for p in models}
+    for i in range(2):
+        parts = []
+        for p, e in models.items():
+            t = cur[p]
+            free = _free(t, e, everything, hold)[: -e.n]
+            parts.append(([*t.models, e], t.ctx, splits(t.ctx)[i][0], t.fits[i].x, free))
+        for p, f in zip(models, fit_shared(parts), strict=True):
+            fits[p].append(f)
+            scores[p].append(score(f.models, f.x, cur[p].ctx, splits(cur[p].ctx)[i][1]))
+    return {
+        p: Trial(cur[p].ctx, [*cur[p].models, e], fits[p], merge(scores[p]), scores[p])
+        for p, e in models.items()
+    }
+
+
+def add_all(cur: Joint, models: dict[str, EffectModel], everything: bool = False) -> Joint:
+    """``cur`` plus the wheels' models of one effect (a tyre effect on several wheels: one
+    parameter set for them all); the other wheels keep ``cur``'s."""
+    e = next(iter(models.values()))
+    if e.tyre and len(models) > 1:
+        new = add_shared(cur.wheels, models, everything, cur.shared)
+        shared = cur.shared | {_key(e)}
+    else:
+        new = {p: add(cur.wheels[p], m, everything, cur.shared) for p, m in models.items()}
+        shared = cur.shared
+    return Joint({p: new.get(p, t) for p, t in cur.wheels.items()}, list(cur.keys), shared=shared)
+
+
+def without(cur: Trial, key: Key, hold: Iterable[Key] = ()) -> Trial:
+    """``cur`` with the model of ``key`` taken out and the rest refitted (but ``hold``)."""
     keep = [i for i, m in enumerate(cur.models) if _key(m) != key]
     if len(keep) == len(cur.models):
         return cur
     offsets = np.cumsum([0] + [m.n for m in cur.models])
     cols = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in keep])
-    return cross_validate([cur.models[i] for i in keep], cur.ctx, [f.x[cols] for f in cur.fits])
+    models = [cur.models[i] for i in keep]
+    return cross_validate(models, cur.ctx, [f.x[cols] for f in cur.fits], held(models, hold))
 
 
 def joint_add(
     cur: Joint, key: Key, models: dict[str, EffectModel], everything: bool = False
 ) -> Joint:
     """``cur`` plus the wheels' models of one effect."""
-    wheels = {p: add(t, models[p], everything) if p in models else t for p, t in cur.wheels.items()}
-    out = Joint(wheels, [*cur.keys, key])
+    out = add_all(cur, models, everything)
+    out.keys = [*cur.keys, key]
     out.vs = ev.compare(cur.score, out.score)
     return out
 
@@ -170,6 +219,9 @@ def search(
     for c, pool in zip(ctxs, pools, strict=True):
         for m in pool:
             library.setdefault(_key(m), {})[c.wheel.prefix] = m
+    for ms in library.values():
+        if next(iter(ms.values())).tyre:
+            shared(list(ms.values()))
     cur = base
     accepted: dict[Key, Joint] = {}
     alone: dict[Key, float] = {}  # what each explains added to the baseline alone
@@ -371,9 +423,10 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
     done = max(_changed(t, cur, list(per_wheel)), 1e-12)  # what the effect changes
     out, tested = [], 0
     for i, c in enumerate(next(iter(per_wheel.values()))):
-        ctrl = Joint(
-            {p: add(tr, per_wheel[p][i]) if p in per_wheel else tr for p, tr in cur.wheels.items()}
-        )
+        twins = {p: cs[i] for p, cs in per_wheel.items()}
+        if c.tyre:
+            shared(list(twins.values()))
+        ctrl = add_all(cur, twins)
         apart = _changed(t, ctrl, list(per_wheel)) / done
         rms = ctrl.score.rms
         if apart < ev.CONTROL_RESOLVES:
@@ -413,8 +466,9 @@ def _backward(
         drop = None
         for key in cur.keys:
             wo = Joint(
-                {p: without(t, key) for p, t in cur.wheels.items()},
+                {p: without(t, key, cur.shared - {key}) for p, t in cur.wheels.items()},
                 [k for k in cur.keys if k != key],
+                shared=cur.shared - {key},
             )
             vs = ev.compare(wo.score, cur.score)
             explained[key] = _share(wo.score, cur.score, base.score)

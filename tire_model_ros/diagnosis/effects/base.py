@@ -22,8 +22,8 @@ which effect it is.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -60,6 +60,10 @@ class EffectModel:
     # A physics of the session does the same to the forces fitted on the early or on the late
     # half (not a step, nor a state that the first half sees rise and the second saturate).
     stable_in_time = True
+    # Its parameters are the tyre's own (not a wheel's state or a sensor's): on the wheels of
+    # a car, one set is fitted to all of them (:func:`shared`), so that a wheel that reaches
+    # the same conditions without the effect tells against it.
+    tyre: ClassVar[bool] = False
 
     def __init__(self, params: list[Param], starts: list[dict[str, float]] | None = None):
         self.params = params
@@ -144,6 +148,23 @@ class EffectModel:
 
     def __repr__(self) -> str:
         return f"{self.word}[{self.label}]"
+
+
+def shared(models: Sequence[EffectModel]) -> None:
+    """Give the wheels' models of one tyre effect one parameter space: each parameter's
+    bounds span every wheel's, its start is their median, the alternative starts all of
+    theirs and each wheel's own start (each wheel proposes from its own operating range)."""
+    if len(models) < 2:
+        return
+    params = []
+    for ps in zip(*(m.params for m in models), strict=True):
+        lo, hi = min(p.lo for p in ps), max(p.hi for p in ps)
+        x0 = float(np.clip(np.median([p.x0 for p in ps]), lo, hi))
+        params.append(replace(ps[0], x0=x0, lo=lo, hi=hi, scale=max(p.scale for p in ps)))
+    starts = [{p.name: p.x0 for p in m.params} for m in models]
+    starts += [st for m in models for st in m.starts]
+    for m in models:
+        m.params, m.starts = list(params), list(starts)
 
 
 def coefficient_params(

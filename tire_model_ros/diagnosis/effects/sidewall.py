@@ -5,6 +5,9 @@ that corner of the operating range (PHYSICS.md: gated by the deflection, Fz / p)
 Where the corner lies is the tyre's own: the gate's threshold is fitted within the upper half
 of the deflections the session reaches beyond the force peak (a corner, not the whole range),
 and the model must beat the same drop at every deflection (its control: the gate tested).
+The threshold, slip angle and drop are the tyre's: on a car one set is fitted to every wheel
+that runs past its peak, so that a wheel which runs its corners at one deflection (a loaded
+front wheel) is told from one that reaches the same slip angles less deflected.
 """
 
 from __future__ import annotations
@@ -23,7 +26,6 @@ from .curve import curve_shapes
 # cornering stiffness (the tyre's own peak, not the session's largest slip angle, which one
 # hard corner of a car can set).
 BEYOND_PEAK_SLOPE = 0.3
-MIN_SPREAD = 1.05  # the deflections past the peak must span this ratio (95th / 50th pct.)
 MIN_CORNER_SHARE = 0.01  # of the samples past the peak above their median deflection
 DROP_ACTS = 1e-3  # a factor this far below 1: the fitted drop acts there (its support)
 
@@ -54,6 +56,7 @@ class SidewallContact(EffectModel):
     """
 
     word = "sidewall_contact"
+    tyre = True
 
     def __init__(self, ctx: Context, gated: bool = True):
         self.gated = gated
@@ -85,9 +88,8 @@ class SidewallContact(EffectModel):
     def propose(cls, ctx: Context) -> list[EffectModel]:
         if "Fy" not in ctx.channels or not ctx.informative["y"]:
             return []
-        rho = deflection(ctx)[_beyond(ctx)]
-        if len(rho) < 10 or np.quantile(rho, 0.95) < MIN_SPREAD * np.quantile(rho, 0.5):
-            return []  # the session does not reach a corner of higher deflection
+        if np.count_nonzero(_beyond(ctx)) < 10:
+            return []  # the session does not run past the peak
         return [cls(ctx)] if float(np.mean(_corner(ctx))) > MIN_CORNER_SHARE else []
 
     def controls(self, ctx: Context) -> list[EffectModel]:
