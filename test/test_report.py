@@ -109,3 +109,18 @@ def test_parameter_and_sentence_formatting():
     assert text.startswith("**temperature** (concealed")
     assert "TTY3 = -0.200 ± 0.050" in text and "where: t = 10-90 s" in text
     assert "\n   - evidence: beats a time trend" in text
+
+
+def test_a_worse_final_heldout_is_said_in_words():
+    """An improved model that predicts a channel worse on the final held-out sweeps (which
+    chose nothing) gets a warning naming the channel and both figures; within 5 %, none."""
+    from tire_model_ros.diagnosis.report import heldout_warnings
+
+    def fit(before: float, after: float) -> dict:
+        return {"heldout_baseline": {"Fx": {"rmse": 13.6}, "Fy": {"rmse": before}},
+                "heldout_improved": {"Fx": {"rmse": 13.6}, "Fy": {"rmse": after}}}  # fmt: skip
+
+    (warning,) = heldout_warnings(fit(32.0, 55.0))
+    assert "Fy worse" in warning and "32.0" in warning and "55.0" in warning
+    assert heldout_warnings(fit(32.0, 33.0)) == []
+    assert heldout_warnings({"heldout_baseline": {}}) == []

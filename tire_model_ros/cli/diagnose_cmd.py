@@ -123,6 +123,7 @@ def node_params(diag: Diagnosis, tirs: dict[str, Path], effects: Path) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from tire_model_ros.diagnosis import diagnose
+    from tire_model_ros.diagnosis.report import heldout_warnings
     from tire_model_ros.model import write_tir
 
     out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
@@ -158,6 +159,8 @@ def run(args: argparse.Namespace) -> int:
         if a is not None and b is not None:
             unit = "N m" if ch == "Mz" else "N"
             print(f"  held-out {ch} RMSE: {a:.1f} -> {b:.1f} {unit}")
+    for warning in heldout_warnings(diag.fit):
+        print(f"  {warning}")
     if args.json:
         write_json_atomic(diag.to_json(), args.json, overwrite=args.force)
         print(f"wrote {args.json}")

@@ -187,6 +187,26 @@ def fit_table(fit: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+WORSE_HELDOUT = 1.05  # held-out RMSE after / before above which the report warns
+
+
+def heldout_warnings(fit: Mapping[str, Any]) -> list[str]:
+    """A sentence per channel the improved model predicts worse on the final held-out sweeps
+    (which chose nothing): what the selection folds could not see, said, not hidden."""
+    out = []
+    for c in DIAGNOSED_CHANNELS:
+        hb = _metric(fit, "heldout_baseline", c, "rmse")
+        hi = _metric(fit, "heldout_improved", c, "rmse")
+        if np.isfinite(hb) and np.isfinite(hi) and hi > WORSE_HELDOUT * hb:
+            unit = UNIT_OF_CHANNEL.get(c, "")
+            out.append(
+                f"Warning: on the final held-out sweeps the improved model predicts {c} worse "
+                f"({fmt_num(hb)} -> {fmt_num(hi)} {unit}): an effect above does not carry over "
+                "to some conditions held out (e.g. a corner past those it was fitted on)."
+            )
+    return out
+
+
 def summary_line(effects: Sequence[Any]) -> str:
     """The first line an engineer reads: what is missing from the model, strongest first."""
     named = [e for e in effects if _get(e, "name") != "none"]
@@ -224,6 +244,7 @@ def _markdown(
             lines += [f"   {i}. {effect_sentence(e)}" for i, e in enumerate(found, 1)]
     lines += ["", "## Fit", ""]
     lines += fit_table(fit)
+    lines += ["", *heldout_warnings(fit)] if heldout_warnings(fit) else []
     lines += [
         "",
         "RMSE in N (N m for Mz); NRMSE = RMSE / (max − min of the measured channel). "
