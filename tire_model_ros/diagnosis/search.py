@@ -156,7 +156,7 @@ def add_shared(
         parts = []
         for p, e in models.items():
             t = cur[p]
-            free = _free(t, e, everything, hold)[: -e.n]
+            free = _free(t, e, everything, hold)[: sum(m.n for m in t.models)]
             parts.append(([*t.models, e], t.ctx, splits(t.ctx)[i][0], t.fits[i].x, free))
         for p, f in zip(models, fit_shared(parts), strict=True):
             fits[p].append(f)
