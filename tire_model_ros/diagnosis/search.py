@@ -2,10 +2,11 @@
 
 Start from the baseline (the file's model, scaling factors refitted), on every wheel of the
 recording. At each step every model of the library not yet in (one per word) is added in
-turn, on each wheel it applies to with that wheel's own parameters, and cross-validated on
-the two selection folds; those that beat the current model significantly, the evidence of
-all wheels pooled, are ranked by held-out score (the simplest first among near-ties), and the
-first one the evidence tests believe joins (:mod:`.evidence`: support, stability, controls).
+turn, on each wheel it applies to with that wheel's own parameters (a tyre's own effect: one
+set for all the wheels), and cross-validated on the two selection folds; those that beat the
+current model significantly, the evidence of all wheels pooled, are ranked by held-out score
+(the simplest first among near-ties), and the first one the evidence tests believe joins
+(:mod:`.evidence`: support, stability, controls).
 Then every chosen effect must still earn its place against the others (backward step), and
 each is credited with what it explains: the share of the baseline's held-out mean square
 error of Fx and Fy that it removes, the mean of that added to the baseline alone and added to
