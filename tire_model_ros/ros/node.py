@@ -76,8 +76,10 @@ Loss: a message that cannot be read is counted and dropped; every slip message t
 answered or counted under a reason (:data:`..wheel.state.UNANSWERED`); at exit the node prints
 one ``final counts`` line per wheel with every counter.
 
-Executor: rclpy's EventsExecutor (2-3x the message rate of SingleThreadedExecutor here), driven
-by ``spin_once`` so that SIGINT/SIGTERM end the process cleanly with exit code 0.
+Executor: rclpy's EventsExecutor (2-3x the message rate of SingleThreadedExecutor here; the
+single-threaded one on a simulated clock, whose timers the events executor does not follow
+reliably), driven by ``spin_once`` so that SIGINT/SIGTERM end the process cleanly with exit
+code 0.
 
 Latency: once started, ``main`` freezes the start-up heap (a full garbage collection of it
 would stall messages by 16-54 ms) and applies ``rt_priority`` and ``cpus`` to every thread.
@@ -730,13 +732,16 @@ class TireModelNode(TireModelCore):
         self.active = True
 
 
-def make_executor(kind: str | None = None) -> Executor:
+def make_executor(kind: str | None = None, sim_time: bool = False) -> Executor:
     """EventsExecutor (default, ~2.5x the callback rate here) or SingleThreadedExecutor.
 
-    ``TIRE_MODEL_EXECUTOR=single`` selects the single-threaded one (for comparisons).
+    ``TIRE_MODEL_EXECUTOR=single`` selects the single-threaded one (for comparisons). On a
+    simulated clock (``use_sim_time``) it is always the single-threaded one: the events
+    executor's timer manager (as rclcpp's, ros2/rclcpp#2457) does not follow /clock reliably,
+    and the /diagnostics and hold timers run on that clock.
     """
     kind = kind or os.environ.get("TIRE_MODEL_EXECUTOR", "events")
-    if kind == "single":
+    if kind == "single" or sim_time:
         return SingleThreadedExecutor()
     from rclpy.experimental import EventsExecutor
 
@@ -789,7 +794,7 @@ def run(make: Callable[[], Any], done: Callable[[Any], bool] = lambda _n: False)
     code = 0
     try:
         node = make()
-        executor = make_executor()
+        executor = make_executor(sim_time=bool(node.get_parameter("use_sim_time").value))
         executor.add_node(node)
         tune_process(node)
         spin(executor, lambda: done(node))
