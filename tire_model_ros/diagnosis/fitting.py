@@ -84,6 +84,16 @@ def bounds(models: Sequence[EffectModel]) -> tuple[Array, Array]:
     return lo, hi
 
 
+def _fitted(models: Sequence[EffectModel]) -> Mask:
+    """Per parameter: whether a fit moves it (the others are set by ``settle``)."""
+    return np.array([p.fitted for m in models for p in m.params], dtype=bool)
+
+
+def _scales(models: Sequence[EffectModel]) -> Array:
+    """Per parameter: its typical scale (the optimiser's x_scale)."""
+    return np.array([p.scale for m in models for p in m.params], dtype=np.float64)
+
+
 def fit(
     models: Sequence[EffectModel],
     ctx: Context,
@@ -105,11 +115,11 @@ def fit(
     lo, hi = bounds(models)
     x0 = np.clip(np.asarray(x0, float), lo, hi)
     free = np.ones(len(x0), dtype=bool) if free is None else np.asarray(free, dtype=bool)
-    free = free & np.array([p.fitted for m in models for p in m.params], dtype=bool)
+    free = free & _fitted(models)
     if not free.any():
         r = residuals(models, x0, ctx, rows)
         return Fit(models, x0, 0.5 * float(r @ r), len(r), free=free)
-    scale = np.array([p.scale for m in models for p in m.params], dtype=np.float64)[free]
+    scale = _scales(models)[free]
 
     def full(xt: Array) -> Array:
         x = x0.copy()
@@ -137,19 +147,16 @@ def fit_shared(
     e = parts[0][0][-1]
     lo_e, hi_e = bounds([e])
     x0_e = np.clip(e.x0, lo_e, hi_e)
-    free_e = np.array([p.fitted for p in e.params], dtype=bool)
-    heads = []
+    free_e = _fitted([e])
+    heads = []  # per part: the other models' start, free mask, bounds and scales
     for ms, _, _, xh, fh in parts:
         lo, hi = bounds(ms[:-1])
-        fh = np.asarray(fh, bool) & np.array([p.fitted for m in ms[:-1] for p in m.params])
-        heads.append((np.clip(np.asarray(xh, float), lo, hi), fh, lo, hi, ms[:-1]))
+        fh = np.asarray(fh, bool) & _fitted(ms[:-1])
+        heads.append((np.clip(np.asarray(xh, float), lo, hi), fh, lo, hi, _scales(ms[:-1])))
     x0 = np.concatenate([x0_e[free_e]] + [xh[fh] for xh, fh, *_ in heads])
     lo = np.concatenate([lo_e[free_e]] + [lo[fh] for _, fh, lo, _, _ in heads])
     hi = np.concatenate([hi_e[free_e]] + [hi[fh] for _, fh, _, hi, _ in heads])
-    scale = np.concatenate(
-        [np.array([p.scale for p in e.params])[free_e]]
-        + [np.array([p.scale for m in ms for p in m.params])[fh] for _, fh, _, _, ms in heads]
-    )
+    scale = np.concatenate([_scales([e])[free_e]] + [sc[fh] for _, fh, _, _, sc in heads])
     cuts = np.cumsum([int(free_e.sum())] + [int(fh.sum()) for _, fh, *_ in heads])
 
     def vectors(xt: Array) -> list[Array]:

@@ -244,7 +244,8 @@ def _markdown(
             lines += [f"   {i}. {effect_sentence(e)}" for i, e in enumerate(found, 1)]
     lines += ["", "## Fit", ""]
     lines += fit_table(fit)
-    lines += ["", *heldout_warnings(fit)] if heldout_warnings(fit) else []
+    warnings = heldout_warnings(fit)
+    lines += ["", *warnings] if warnings else []
     lines += [
         "",
         "RMSE in N (N m for Mz); NRMSE = RMSE / (max − min of the measured channel). "
