@@ -309,6 +309,24 @@ def test_offset_is_named_constant_and_sized(model):
     assert carried.alpha_shift_rad == shift
 
 
+def test_a_load_cell_zero_within_the_noise_is_not_named_and_one_beyond_it_is(model):
+    """A constant Fx zero of 0.42 of the (white) noise passes the significance tests on ten
+    minutes of sweeps (the code before the materiality test named it) but changes the forces
+    by less than the measurement's own error: not named. 1.5 times the noise is named."""
+
+    def session(fx_N: float) -> list:
+        eff = {"offset": {"fy_per_Fz": 0.0, "fx_N": fx_N}, "noise": {"colour": 0.0}}
+        return _session(model, eff)[0]
+
+    sigma = next(iter(diagnose(session(0.0), model, seed=0).wheels.values())).sigma["Fx"]
+    diag = diagnose(session(0.42 * sigma), model, seed=0)
+    assert [e.name for e in diag.effects] == ["none"], diag.details["log"]
+    assert any("within the measurement's own error" in s for s in diag.details["log"])
+    diag = diagnose(session(1.5 * sigma), model, seed=0)
+    assert [e.name for e in diag.effects] == ["offset"], diag.details["log"]
+    assert "changes Fx by" in diag.effects[0].evidence
+
+
 def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
     """Noise only: 'none', nothing invented; JSON/report/improved .tir written atomically;
     scores against the noise-free twin (--reference) far below the raw ones."""

@@ -6,7 +6,7 @@ turn, on each wheel it applies to with that wheel's own parameters (a tyre's own
 set for all the wheels), and cross-validated on the two selection folds; those that beat the
 current model significantly, the evidence of all wheels pooled, are ranked by held-out score
 (the simplest first among near-ties), and the first one the evidence tests believe joins
-(:mod:`.evidence`: support, stability, controls).
+(:mod:`.evidence`: materiality, support, controls).
 Then every chosen effect must still earn its place against the others (backward step), and
 each is credited with what it explains: the share of the baseline's held-out mean square
 error of Fx and Fy that it removes, the mean of that added to the baseline alone and added to
@@ -301,7 +301,7 @@ def _believed(
     t: Joint, cur: Joint, library: dict[Key, dict[str, EffectModel]], log: list[str]
 ) -> bool:
     """The evidence tests of :mod:`.evidence` beyond significance, cheapest first."""
-    for test in (_support, _controls):
+    for test in (_material, _support, _controls):
         ok, note = test(t, cur)
         if note:
             t.notes.append(note)
@@ -319,6 +319,26 @@ def _new(t: Joint, cur: Joint) -> list[tuple[Trial, Trial, EffectModel]]:
         if new is not cur.wheels[p] and _key(new.models[-1]) == key:
             out.append((cur.wheels[p], new, new.models[-1]))
     return out
+
+
+def _material(t: Joint, cur: Joint) -> tuple[bool, str]:
+    """What adding the effect changes, on the channel it changes most, where it acts (its
+    support), on the held-out sweeps of every wheel it was added on: RMS in noise units."""
+    ss: dict[str, float] = {}
+    count = 0
+    for c, n, e in _new(t, cur):
+        for i, (_, test) in enumerate(splits(n.ctx)):
+            mask = e.support(n.ctx, n.fits[i].x[-e.n :])
+            rows = test if mask is None else test[mask[test]]
+            for ch, d in _doing(n.fits[i], c.fits[i], n.ctx, rows).items():
+                ss[ch] = ss.get(ch, 0.0) + float(d @ d)
+            count += len(rows)
+    if not ss or count == 0:
+        return True, ""
+    ch, top = max(((ch, np.sqrt(v / count)) for ch, v in ss.items()), key=lambda kv: kv[1])
+    ok = ev.material(float(top))
+    note = f"changes {ch} by {top:.2f} of its noise (RMS where it acts)"
+    return ok, note if ok else f"{note}, under {ev.MIN_DOING}: within the measurement's own error"
 
 
 def _support(t: Joint, cur: Joint) -> tuple[bool, str]:
@@ -339,13 +359,18 @@ def _support(t: Joint, cur: Joint) -> tuple[bool, str]:
                 "whole gain made there")  # fmt: skip
 
 
-def _doing(new: Fit, cur: Fit, ctx: Context, rows: Index) -> Array:
-    """What adding an effect changes in the predicted forces at ``rows``: the model with it
-    minus the model without it, each fitted on the same samples (so that the baseline's
-    scaling factors, refitted in both, cannot hide in it), in noise units."""
+def _doing(new: Fit, cur: Fit, ctx: Context, rows: Index) -> dict[str, Array]:
+    """What adding an effect changes in the predicted forces at ``rows``, per channel: the
+    model with it minus the model without it, each fitted on the same samples (so that the
+    baseline's scaling factors, refitted in both, cannot hide in it), in noise units."""
     a = predict(new.models, new.x, ctx, rows)
     b = predict(cur.models, cur.x, ctx, rows)
-    return np.concatenate([(a[ch] - b[ch]) / ctx.sigma[ch] for ch in ctx.channels])
+    return {ch: (a[ch] - b[ch]) / ctx.sigma[ch] for ch in ctx.channels}
+
+
+def _doing_all(new: Fit, cur: Fit, ctx: Context, rows: Index) -> Array:
+    """:func:`_doing`, the channels one after the other."""
+    return np.concatenate(list(_doing(new, cur, ctx, rows).values()))
 
 
 def _stability(t: Joint, cur: Joint) -> tuple[bool, str]:
@@ -373,7 +398,9 @@ def _stability(t: Joint, cur: Joint) -> tuple[bool, str]:
         x0n, x0c = (np.mean([f.x for f in tr.fits], axis=0) for tr in (n, c))
         fn = [fit(n.models, n.ctx, h, x0n, free=n.fits[0].free) for h in halves]
         fc = [fit(c.models, c.ctx, h, x0c) for h in halves]
-        pairs.append((_doing(fn[0], fc[0], n.ctx, common), _doing(fn[1], fc[1], n.ctx, common)))
+        pairs.append(
+            (_doing_all(fn[0], fc[0], n.ctx, common), _doing_all(fn[1], fc[1], n.ctx, common))
+        )
     if not pairs:
         return True, ""
     da = np.concatenate([a for a, _ in pairs])
@@ -452,7 +479,7 @@ def _changed(t: Joint, other: Joint, prefixes: Sequence[str]) -> float:
     for p in prefixes:
         a, b = t.wheels[p], other.wheels[p]
         for i, (_, test) in enumerate(splits(a.ctx)):
-            diff.append(_doing(a.fits[i], b.fits[i], a.ctx, test))
+            diff.append(_doing_all(a.fits[i], b.fits[i], a.ctx, test))
     return ev.rms(np.concatenate(diff))
 
 
