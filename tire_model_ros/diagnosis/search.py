@@ -274,7 +274,12 @@ def _name(library: dict[Key, dict[str, EffectModel]], key: Key) -> str:
 
 
 def _n_params(t: Joint, library: dict[Key, dict[str, EffectModel]]) -> int:
-    return next(iter(library[t.keys[-1]].values())).n
+    """The parameters the last effect of ``t`` adds: once for a tyre's (shared), once per
+    wheel for the others."""
+    key = t.keys[-1]
+    models = library[key]
+    n = next(iter(models.values())).n
+    return n if key in t.shared else n * len(models)
 
 
 def _ranked(trials: Sequence[Joint], library: dict[Key, dict[str, EffectModel]]) -> list[Joint]:

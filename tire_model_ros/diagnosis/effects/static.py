@@ -66,10 +66,12 @@ class _CoefficientRefit(EffectModel):
 
 
 class Camber(_CoefficientRefit):
-    """The MF camber coefficients (Fy: PVY3, PKY6, PHY3, PDY3; Fx: PDX3) refitted."""
+    """The MF camber coefficients (Fy: PVY3, PKY6, PHY3, PDY3; Fx: PDX3) refitted: the
+    tyre's (one set for the wheels of a car, which run it at their own inclinations)."""
 
     word = "camber"
     label = "Magic Formula camber coefficients"
+    tyre = True
 
     def __init__(self, ctx: Context):
         names, scales = [], []
@@ -97,6 +99,7 @@ class CombinedSlip(_CoefficientRefit):
 
     word = "combined_slip"
     label = "combined-slip weighting and induced side force (rBx, rCx, rBy, rCy, rVy)"
+    tyre = True  # the tyre's coefficients: one set for the wheels of a car
     # Coefficient: (typical scale, a usual value to start from where the file has 0 (with
     # B = 0 a weighting is flat in B; with rVy4-6 = 0 the induced force has no gradient)).
     COEFS: ClassVar[dict[str, tuple[float, float]]] = {
