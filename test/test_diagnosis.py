@@ -17,7 +17,7 @@ from conftest import MF61_TIR, ROOT, TOOL
 
 from tire_model_ros.diagnosis import Diagnosis, diagnose
 from tire_model_ros.diagnosis.dynamics import relaxed_slip, thermal_state_K
-from tire_model_ros.diagnosis.evidence import agree_doing, compare, rms
+from tire_model_ros.diagnosis.evidence import agree_doing, compare, region_gains, rms, supported
 from tire_model_ros.diagnosis.fitting import Score
 from tire_model_ros.diagnosis.folds import SPLIT, rare_folds
 from tire_model_ros.diagnosis.result import MZ_COEFS
@@ -670,3 +670,16 @@ def test_camber_is_the_tyres_one_set_of_coefficients_on_the_wheels_of_a_car(mode
     assert tirs["/car/fl"].params["PVY3"] != model.params["PVY3"], log
     before, after = (diag.fit[k]["Fy"]["rmse"] for k in ("heldout_baseline", "heldout_improved"))
     assert after < 0.2 * before, (diag.fit, log)
+
+
+def test_a_local_effect_is_credited_with_relieving_the_baseline_but_not_with_more():
+    """Support: an effect acting in one corner gains 30 there (noise units) and 70 outside,
+    where the baseline fitted without the corner gains 60 (relief: the baseline no longer
+    bends to the corner): 90 of 100 are its own, supported. With no relief the 70 outside is
+    the refitted baseline doing something else: 30 %, not supported."""
+    rel, share, n = region_gains(np.array([100.0, 70.0, 70.0, 200, 60.0]))
+    assert share == pytest.approx(0.9) and supported(rel, share, n)
+    rel, share, n = region_gains(np.array([100.0, 70.0, 70.0, 200, 0.0]))
+    assert share == pytest.approx(0.3) and not supported(rel, share, n)
+    rel, share, n = region_gains(np.array([100.0, 70.0, 70.0, 200, -5.0]))  # no worse than none
+    assert share == pytest.approx(0.3)

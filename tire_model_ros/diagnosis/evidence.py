@@ -6,7 +6,9 @@
 2. *Materiality*: it changes some force by at least half the measurement's noise where it
    acts.
 3. *Support*: a model whose physics acts only in one region of the operating range gains
-   there at least the least gain selection accepts, and most of its gain comes from there.
+   there at least the least gain selection accepts, and most of its gain comes from there or
+   from relieving the baseline of that region (what the current model fitted without it gains
+   elsewhere).
 4. *Controls*: it predicts held-out sweeps better than each simpler model of the same mismatch
    it names (a memoryless twin, a time-scrambled driver, a plain trend).
 """
@@ -118,7 +120,9 @@ def material(doing: float) -> bool:
     return doing >= MIN_DOING
 
 
-MIN_SUPPORT_SHARE = 0.7  # of the held-out gain (noise units) made inside the support
+MIN_SUPPORT_SHARE = 0.7  # of the held-out gain (noise units) made inside the support ...
+# ... beyond the relief: what the current model gains outside when it is fitted without the
+# region (a baseline no longer distorted by a local effect it could not model gains there too)
 
 
 def region_sums(
@@ -127,31 +131,46 @@ def region_sums(
     new: Sequence[Fit],
     tests: Sequence[Index],
     inside: Mask,
+    relieved: Sequence[Fit],
 ) -> Array:
     """Normalised held-out squared errors of ``cur`` and ``new`` inside and outside a region,
-    and the held-out samples inside: [in cur, in new, out cur - out new, n in]."""
-    acc = np.zeros(4)
-    for f0, f1, rows in zip(cur, new, tests, strict=True):
-        e0, e1 = errors(f0.models, f0.x, ctx, rows), errors(f1.models, f1.x, ctx, rows)
-        z0 = np.asarray(sum((e0[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels), dtype=np.float64)
-        z1 = np.asarray(sum((e1[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels), dtype=np.float64)
+    and the held-out samples inside: [in cur, in new, out cur - out new, n in, out cur - out
+    relieved] (``relieved``: the current model fitted outside the region)."""
+    acc = np.zeros(5)
+    for f0, f1, fr, rows in zip(cur, new, relieved, tests, strict=True):
+        z0, z1, zr = (_z(f, ctx, rows) for f in (f0, f1, fr))
         m = inside[rows]
-        acc += (float(z0[m].sum()), float(z1[m].sum()), float(z0[~m].sum() - z1[~m].sum()), m.sum())
+        acc += (
+            float(z0[m].sum()),
+            float(z1[m].sum()),
+            float(z0[~m].sum() - z1[~m].sum()),
+            m.sum(),
+            float(z0[~m].sum() - zr[~m].sum()),
+        )
     return acc
+
+
+def _z(f: Fit, ctx: Context, rows: Index) -> Array:
+    e = errors(f.models, f.x, ctx, rows)
+    return np.asarray(sum((e[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels), dtype=np.float64)
 
 
 def region_gains(acc: Array) -> tuple[float, float, int]:
     """From :func:`region_sums` (summed over wheels): the relative RMS gain inside the region,
-    the share of the whole gain (noise units) made there, and the held-out samples inside."""
-    cur_in, new_in, gain_out, n_in = acc
+    the share of the whole gain (noise units) made there, counting as made there what the
+    current model gains outside once relieved of the region, and the held-out samples inside."""
+    cur_in, new_in, gain_out, n_in, relief = acc
     rel_in = 1.0 - math.sqrt(new_in / cur_in) if cur_in > 0 else 0.0
+    beyond = max(gain_out - max(relief, 0.0), 0.0)  # outside, more than relief explains
+    made_in = (cur_in - new_in) + (gain_out - beyond)
     whole = (cur_in - new_in) + gain_out
-    share = (cur_in - new_in) / whole if whole > 0 else 0.0
+    share = made_in / whole if whole > 0 else 0.0
     return rel_in, share, int(n_in)
 
 
 def supported(rel_in: float, share_in: float, n_in: int) -> bool:
-    """The physics shows where it acts: enough gain there, and most of the gain."""
+    """The physics shows where it acts: enough gain there, and most of the gain there or in
+    what it relieves the baseline of."""
     return n_in > 0 and rel_in >= MIN_REL_RMSE_GAIN and share_in >= MIN_SUPPORT_SHARE
 
 

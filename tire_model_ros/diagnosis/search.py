@@ -347,15 +347,18 @@ def _material(t: Joint, cur: Joint) -> tuple[bool, str]:
 
 
 def _support(t: Joint, cur: Joint) -> tuple[bool, str]:
-    acc = np.zeros(4)
+    acc = np.zeros(5)
     any_region = False
     for c, n, e in _new(t, cur):
-        for i, (_, test) in enumerate(splits(n.ctx)):
+        for i, (train, test) in enumerate(splits(n.ctx)):
             mask = e.support(n.ctx, n.fits[i].x[-e.n :])
             if mask is None:
                 break
             any_region = True
-            acc += ev.region_sums(n.ctx, c.fits[i : i + 1], n.fits[i : i + 1], [test], mask)
+            f, outside = c.fits[i], train[~mask[train]]
+            enough = len(outside) > sum(m.n for m in c.models)  # else nothing to relieve
+            relieved = fit(c.models, c.ctx, outside, f.x, free=f.free) if enough else f
+            acc += ev.region_sums(n.ctx, [f], n.fits[i : i + 1], [test], mask, [relieved])
     if not any_region:
         return True, ""
     rel, share, n_in = ev.region_gains(acc)
