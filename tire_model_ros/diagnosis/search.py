@@ -364,7 +364,7 @@ def _support(t: Joint, cur: Joint) -> tuple[bool, str]:
     rel, share, n_in = ev.region_gains(acc)
     ok = ev.supported(rel, share, n_in)
     return ok, (f"held-out gain {rel:+.1%} where it acts ({n_in} samples), {share:.0%} of its "
-                "whole gain made there")  # fmt: skip
+                "whole gain made there or in relieving the baseline of it")  # fmt: skip
 
 
 def _doing(new: Fit, cur: Fit, ctx: Context, rows: Index) -> dict[str, Array]:
