@@ -23,7 +23,7 @@ import numpy as np
 from scipy.stats import binom
 
 from .effects.base import Array, Index, Mask
-from .fitting import Fit, Score, errors
+from .fitting import Fit, Score, errors, squared_z
 from .prepare import Context
 
 MIN_REL_RMSE_GAIN = 0.04  # >= 4 % lower held-out RMS where it acts (support; half: the screen)
@@ -139,7 +139,7 @@ def region_sums(
     relieved] (``relieved``: the current model fitted outside the region)."""
     acc = np.zeros(5)
     for f0, f1, fr, rows in zip(cur, new, relieved, tests, strict=True):
-        z0, z1, zr = (_z(f, ctx, rows) for f in (f0, f1, fr))
+        z0, z1, zr = (squared_z(errors(f.models, f.x, ctx, rows), ctx) for f in (f0, f1, fr))
         m = inside[rows]
         acc += (
             float(z0[m].sum()),
@@ -149,11 +149,6 @@ def region_sums(
             float(z0[~m].sum() - zr[~m].sum()),
         )
     return acc
-
-
-def _z(f: Fit, ctx: Context, rows: Index) -> Array:
-    e = errors(f.models, f.x, ctx, rows)
-    return np.asarray(sum((e[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels), dtype=np.float64)
 
 
 def region_gains(acc: Array) -> tuple[float, float, int]:

@@ -234,16 +234,18 @@ def settle(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -
     return np.concatenate(out) if out else np.asarray(x, dtype=np.float64)
 
 
+def squared_z(e: dict[str, Array], ctx: Context) -> Array:
+    """Per row: the squared errors ``e`` in noise units, summed over the channels."""
+    return np.asarray(sum((e[ch] / ctx.sigma[ch]) ** 2 for ch in ctx.channels), dtype=np.float64)
+
+
 def score(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> Score:
     """Normalised score on ``rows``, with per-channel and per-block sums."""
     w = ctx.wheel
     e = errors(models, x, ctx, rows)
-    z = np.zeros(len(rows))
-    sse, count = {}, {}
-    for ch in ctx.channels:
-        sse[ch] = float(e[ch] @ e[ch])
-        count[ch] = len(rows)
-        z += (e[ch] / ctx.sigma[ch]) ** 2
+    z = squared_z(e, ctx) if ctx.channels else np.zeros(len(rows))
+    sse = {ch: float(e[ch] @ e[ch]) for ch in ctx.channels}
+    count = dict.fromkeys(ctx.channels, len(rows))
     sums = np.bincount(w.block_id[rows], weights=z, minlength=len(w.blocks))
     per_block = {(w.prefix, int(b)): float(sums[b]) for b in np.unique(w.block_id[rows])}
     return Score(float(z.sum()), len(rows) * len(ctx.channels), sse, count, per_block)
