@@ -548,6 +548,19 @@ def test_a_weaker_effect_beside_a_strong_one_is_judged_on_what_is_left_beyond_th
     assert not compare(at_noise, _score([96.0] * 20 + [104.0] * 20, 1.0)).significant
 
 
+def test_a_large_gain_on_half_the_sweeps_counts_when_it_dominates_and_is_consistent():
+    """A crude model of a large effect (a friction law in the sliding speed, on a rig that
+    runs a few speeds) halves the error on the sweeps where the effect is strong and moves the
+    rest a little the wrong way: significant, though only half the sweeps improve. A gain
+    carried by one sweep is not, however large."""
+    cur = _score([300.0] * 20 + [200.0] * 20, 2.5)
+    crude = _score([150.0] * 20 + [210.0] * 20, 1.8)
+    c = compare(cur, crude)
+    assert c.block_fraction == pytest.approx(0.5) and c.significant, c.text()
+    one = _score([100.0] + [300.0] * 19 + [210.0] * 20, 2.5)
+    assert not compare(_score([2100.0] + [300.0] * 19 + [200.0] * 20, 2.95), one).significant
+
+
 def test_a_near_tie_goes_to_the_richer_model_only_when_most_sweeps_prefer_it():
     """Two models within the Occam margin: the fewer parameters win unless the richer one is
     better on most held-out sweeps (a constant-speed rig's relaxation against a delay)."""

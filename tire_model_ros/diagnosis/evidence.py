@@ -60,13 +60,12 @@ class Comparison:
         return (
             self.excess_share >= MIN_EXCESS_SHARE
             and self.gain_per_sample >= MIN_GAIN_PER_SAMPLE
-            and self.block_fraction >= MIN_BLOCK_FRACTION
             and self.t_stat > 0.0
             # Most sweeps better (sign test), or the improvement dominating by size and
             # consistent (t), where a crude model of a large effect also moves many sweeps a
-            # little the wrong way.
+            # little the wrong way: there the count of sweeps is not asked for.
             and (
-                self.p_sign <= MAX_SIGN_P
+                (self.block_fraction >= MIN_BLOCK_FRACTION and self.p_sign <= MAX_SIGN_P)
                 or (self.weighted_fraction >= MIN_WEIGHTED_FRACTION and self.t_stat >= MIN_T_ALT)
             )
         )
