@@ -10,7 +10,8 @@
    from relieving the baseline of that region (what the current model fitted without it gains
    elsewhere).
 4. *Controls*: it predicts held-out sweeps better than each simpler model of the same mismatch
-   it names (a memoryless twin, a time-scrambled driver, a plain trend).
+   it names (a memoryless twin, a time-scrambled driver, a plain trend), by a margin or on
+   most sweeps.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ MIN_BLOCK_FRACTION = 0.6  # better on >= 60 % of the held-out sweeps that change
 MAX_SIGN_P = 0.05  # sign test over the changed held-out sweeps ...
 MIN_WEIGHTED_FRACTION = 0.8  # ... or >= 80 % of the total change is improvement
 MIN_T_ALT = 2.0  # ... with t >= 2
-MIN_CONTROL_MARGIN = 0.02  # >= 2 % lower held-out RMS than each control
+MIN_CONTROL_MARGIN = 0.02  # >= 2 % lower held-out RMS than each control (or most sweeps)
 # ... a control whose predictions differ from the effect's by less than this share of what the
 # effect changes makes the same prediction: it cannot test it
 CONTROL_RESOLVES = 0.2
@@ -103,6 +104,14 @@ def consistently_better(c: Comparison) -> bool:
     """Better on most of the changed held-out sweeps (sign test) and on average: what a
     near-tie in held-out RMS needs for the data, not the parameter count, to decide it."""
     return c.p_sign <= MAX_SIGN_P and c.t_stat > 0.0
+
+
+def beats_control(new: Score, ctrl: Score) -> bool:
+    """Better on held-out sweeps than a control: by MIN_CONTROL_MARGIN of RMS, or by less and
+    on most of the changed sweeps (the data tell the two apart, as for a near-tie)."""
+    if new.rms <= ctrl.rms * (1.0 - MIN_CONTROL_MARGIN):
+        return True
+    return new.rms < ctrl.rms and consistently_better(compare(ctrl, new))
 
 
 # An effect must change some force by at least half its noise (RMS over the held-out samples

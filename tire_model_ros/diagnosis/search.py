@@ -470,7 +470,7 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
             continue
         out.append(f"{c.label} {rms:.3f} ({apart:.2f} apart)")
         tested += 1
-        if t.score.rms > rms * (1.0 - ev.MIN_CONTROL_MARGIN):
+        if not ev.beats_control(t.score, ctrl.score):
             return False, (f"not better than {c.label} ({t.score.rms:.3f} vs {rms:.3f}, "
                            f"{apart:.2f} apart)")  # fmt: skip
     if not out:
