@@ -703,6 +703,33 @@ def test_camber_is_the_tyres_one_set_of_coefficients_on_the_wheels_of_a_car(mode
     assert after < 0.2 * before, (diag.fit, log)
 
 
+def test_camber_thrust_that_grows_with_load_is_found_on_the_wheels_of_an_axle(model):
+    """The outer and inner wheels of an axle (1.4 and 0.6 of FNOMIN) at one inclination
+    (3 +- 0.5 deg of roll), the tyre's camber thrust more load dependent than its file says
+    (PVY4, PKY7). Without those terms the per-wheel difference passes for an offset; with
+    them camber is named and its load dependence recovered, one set for both wheels."""
+    truth = model.with_params({"PVY4": -1.5, "PKY7": -1.0})
+    wheels, _ = _session(model, {"noise": True})
+    w, rng = wheels[0], np.random.default_rng(5)
+    FN = model.params["FNOMIN"]
+
+    def wheel(prefix: str, load: float):
+        Fz = load * FN * (1.0 + 0.002 * rng.standard_normal(len(w.t)))
+        gamma = np.radians(3.0 + 0.5 * np.sin(w.t / 20.0))
+        out = truth.evaluate(Fz, w.kappa, w.alpha, gamma, w.Vx, w.p, w.T)
+        noise = [20.0 * rng.standard_normal(len(w.t)) for _ in range(2)]
+        return dataclasses.replace(w, prefix=prefix, Fz=Fz, gamma=gamma, Fx=out.Fx + noise[0],
+                                   Fy=out.Fy + noise[1], Mx=None, My=None, Mz=out.Mz)  # fmt: skip
+
+    diag = diagnose([wheel("/car/fl", 1.4), wheel("/car/fr", 0.6)], model)
+    log = "\n".join(diag.details["log"])
+    assert diag.effects[0].name == "camber", log
+    tirs = diag.improved_models
+    for k in ("PVY4", "PKY7"):
+        assert tirs["/car/fl"].params[k] == tirs["/car/fr"].params[k], log
+        assert tirs["/car/fl"].params[k] == pytest.approx(truth.params[k], rel=0.1), log
+
+
 def test_a_local_effect_is_credited_with_relieving_the_baseline_but_not_with_more():
     """Support: an effect acting in one corner gains 30 there (noise units) and 70 outside,
     where the baseline fitted without the corner gains 60 (relief: the baseline no longer

@@ -66,8 +66,10 @@ class _CoefficientRefit(EffectModel):
 
 
 class Camber(_CoefficientRefit):
-    """The MF camber coefficients (Fy: PVY3, PKY6, PHY3, PDY3; Fx: PDX3) refitted: the
-    tyre's (one set for the wheels of a car, which run it at their own inclinations)."""
+    """The MF camber coefficients refitted, with their load dependence (Fy: PVY3, PVY4 of
+    SVyg, 4.E28; PKY6, PKY7 of Kyg0, 4.E30; PKY3 of Kya, 4.E25; PEY4 of Ey, 4.E24; PDY3 of
+    muy, 4.E23; PHY3 (MF 5.2); Fx: PDX3, 4.E13): the tyre's (one set for the wheels of a
+    car, which run them at their own inclinations and loads)."""
 
     word = "camber"
     label = "Magic Formula camber coefficients"
@@ -76,8 +78,8 @@ class Camber(_CoefficientRefit):
     def __init__(self, ctx: Context):
         names, scales = [], []
         if ctx.informative["y"]:
-            names += ["PVY3", "PKY6", "PHY3", "PDY3"]
-            scales += [0.1, 0.1, 0.01, 0.5]
+            names += ["PVY3", "PVY4", "PKY6", "PKY7", "PKY3", "PEY4", "PHY3", "PDY3"]
+            scales += [0.1, 0.1, 0.1, 0.1, 0.2, 2.0, 0.01, 0.5]
         if ctx.informative["x"]:
             names += ["PDX3"]
             scales += [1.0]
