@@ -209,8 +209,8 @@ def _effect(
         parts.append(
             f"noise-normalised held-out RMS gain {tr.vs.rel_gain:.1%} when added, better on "
             f"{tr.vs.block_fraction:.0%} of the changed held-out sweeps (sign test p = "
-            f"{tr.vs.p_sign:.2g}, t = {tr.vs.t_stat:.1f}), two-way cross-validation on whole "
-            "sweeps"
+            f"{tr.vs.p_sign:.2g}, t = {tr.vs.t_stat:.1f}; {tr.vs.weighted_fraction:.0%} of "
+            "their change is improvement), two-way cross-validation on whole sweeps"
         )
         parts += tr.notes
     shown = [f"{n} = {params[n]:.4g} +- {unc.get(n, math.nan):.2g}" for n in m.pnames[:6]]
@@ -227,7 +227,8 @@ def _none(ctx: Context, summaries: dict[str, dict[str, Any]]) -> Effect:
         where_text(summaries[worst], worst),
         "no model of missing physics beat the baseline on held-out sweeps by the margins "
         f"(>= {ev.MIN_EXCESS_SHARE:.0%} of its mean square error beyond the noise, "
-        f">= {ev.MIN_GAIN_PER_SAMPLE:.0%} of the noise variance per sample, most sweeps) and "
+        f">= {ev.MIN_GAIN_PER_SAMPLE:.0%} of the noise variance per sample, on most sweeps or "
+        "by a consistent gain that dominates the change) and "
         "passed its evidence tests",
     )
 
