@@ -741,3 +741,47 @@ def test_a_local_effect_is_credited_with_relieving_the_baseline_but_not_with_mor
     assert share == pytest.approx(0.3) and not supported(rel, share, n)
     rel, share, n = region_gains(np.array([100.0, 70.0, 70.0, 200, -5.0]))  # no worse than none
     assert share == pytest.approx(0.3)
+
+
+def test_backward_step_drops_the_effect_the_model_loses_least_without(monkeypatch):
+    """Two overlapping effects (the first accepted, camber, and one that shadows it, an
+    offset) and a third the data need: without either of the two the loss is not significant,
+    but the model loses less without the shadow, so the shadow goes; once one is out, the
+    other is needed. Dropping the first in order instead would keep the shadow."""
+    from tire_model_ros.diagnosis import search
+    from tire_model_ros.diagnosis.effects.base import EffectModel, Param
+
+    def effect(name: str) -> type[EffectModel]:
+        def init(self: EffectModel) -> None:
+            EffectModel.__init__(self, [Param("a", 0, 0, 1, 1)])
+
+        return type(name, (EffectModel,), {"word": "offset", "label": "", "__init__": init})
+
+    models = {k: effect(k)() for k in "ABC"}
+    full = [100.0] * 40
+    loses = {  # held-out per-sweep error with the effects left in
+        frozenset("ABC"): full,
+        frozenset("BC"): [101.0, 99.5] * 20,  # without A: a little worse, not significant
+        frozenset("AC"): [100.2, 99.9] * 20,  # without B: the least loss
+        frozenset("AB"): [160.0] * 40,
+        frozenset("A"): [150.0] * 40,
+        frozenset("B"): [150.0] * 40,
+        frozenset("C"): [150.0] * 40,
+    }
+
+    def trial(names: frozenset[str]) -> search.Trial:
+        sc = _score(loses[names], sum(loses[names]) / 100 / 40)
+        return search.Trial(None, [models[k] for k in sorted(names)], [], sc, [sc, sc])  # type: ignore[arg-type]
+
+    def without(cur: search.Trial, key: search.Key, hold: object = ()) -> search.Trial:
+        return trial(frozenset(type(m).__name__ for m in cur.models) - {key[0]})
+
+    monkeypatch.setattr(search, "without", without)
+    keys = [(k, "") for k in "ABC"]
+    library = {key: {"w": models[key[0]]} for key in keys}
+    base = search.Joint({"w": trial(frozenset("C"))})
+    cur = search.Joint({"w": trial(frozenset("ABC"))}, keys)
+    log: list[str] = []
+    out, _, _ = search._backward(cur, base, log, library)  # type: ignore[arg-type]
+    assert out.keys == [("A", ""), ("C", "")]
+    assert len(log) == 1 and log[0].startswith("dropped")

@@ -494,12 +494,14 @@ def _changed(t: Joint, other: Joint, prefixes: Sequence[str]) -> float:
 def _backward(
     cur: Joint, base: Joint, log: list[str], library: dict[Key, dict[str, EffectModel]]
 ) -> tuple[Joint, dict[Key, float], dict[Key, dict[str, float]]]:
-    """Drop any effect the others make redundant; credit each what the model loses without it
-    (pooled over the wheels, and per wheel)."""
+    """Drop, one at a time, the effect the others make most redundant (of those whose removal
+    is not significant, the one the model loses least without: backward elimination, so an
+    effect accepted early is not dropped for one that only shadows it); credit each what the
+    model loses without it (pooled over the wheels, and per wheel)."""
     while True:
         explained: dict[Key, float] = {}
         per_wheel: dict[Key, dict[str, float]] = {}
-        drop = None
+        drop: tuple[Key, Joint, ev.Comparison] | None = None
         for key in cur.keys:
             wo = Joint(
                 {p: without(t, key, cur.shared - {key}) for p, t in cur.wheels.items()},
@@ -512,7 +514,7 @@ def _backward(
                 p: _share(wo.wheels[p].score, cur.wheels[p].score, base.wheels[p].score)
                 for p in cur.wheels
             }
-            if not vs.significant and drop is None:
+            if not vs.significant and (drop is None or wo.score.rms < drop[1].score.rms):
                 drop = (key, wo, vs)
         if drop is None:
             return cur, explained, per_wheel
