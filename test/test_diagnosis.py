@@ -629,7 +629,7 @@ def test_sidewall_contact_acts_where_its_fitted_gate_opens_and_has_an_ungated_co
     rho, alpha = deflection(ctx), np.abs(ctx.wheel.x("alpha"))
     th_lo = m.params[0].lo
     assert th_lo > float(np.min(rho))  # the gate cannot open over the whole range
-    x = np.array([1.3, np.radians(6.0), 1.0])
+    x = np.array([1.3, np.radians(6.0), 1.0, 0.3, 0.05])
     acts = m.support(ctx, x)
     assert acts is not None
     inside = (rho > 1.4) & (alpha > np.radians(7.0))

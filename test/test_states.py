@@ -17,6 +17,7 @@ from tire_model_ros.model.states import (
     EffectsError,
     EffectState,
     Node,
+    Sidewall,
     WheelEffects,
     sidewall_factor,
 )
@@ -31,7 +32,7 @@ FULL = WheelEffects(
     offsets={"Fy": (12.0, 150.0), "Mz": (-1.5, 0.0)},
     alpha_shift_rad=0.002,
     speed_table=((-2.0, 0.0, 1.0), (0.8, 1.0, 0.9)),
-    sidewall=(1.5, 0.1, 2.0),
+    sidewall=Sidewall(1.5, 0.1, 2.0, 0.4, 0.03),
 )
 
 
@@ -91,7 +92,7 @@ def test_inputs_and_outputs_follow_the_effects():
     raw = model.evaluate_one(Fz, k, a, 0.0, Vx, p, T)
     out = st.outputs(raw, s, Fz, kappa, alpha, Vx, 3000.0)
     rho = (Fz / 3000.0) / ((1.0e5 + 101325.0) / (2.6e5 + 101325.0))
-    side = sidewall_factor(rho, a_in, (1.5, 0.1, 2.0))
+    side = sidewall_factor(rho, a_in, FULL.sidewall)
     assert side < 0.95  # deflected past the threshold, beyond alpha_c: the drop acts
     assert out[0] == pytest.approx(raw[0] * s)
     assert out[1] == pytest.approx(raw[1] * s * side + 12.0 + 150.0 * Fz / 3000.0)
@@ -162,6 +163,39 @@ def test_effects_file_round_trip(tmp_path):
     assert two.for_wheel("/c") is None
 
 
+def test_sidewall_loss_saturates_at_its_depth_and_older_files_read_as_fitted(tmp_path):
+    """The drop grows at drop_per_rad beyond alpha_c and levels off at depth (a share of Fy),
+    gated by the deflection over a fitted width; a file written before depth and the width
+    were fitted reads as the unbounded linear loss behind a 5 % gate it was fitted as."""
+    alpha = np.radians(np.array([4.0, 6.0, 8.0, 20.0, 60.0]))
+    rho = np.full(alpha.shape, 3.0)  # far past the threshold: the gate is open
+    f = sidewall_factor(rho, alpha, Sidewall(1.5, np.radians(6.0), 2.0, 0.3))
+    assert f[:2] == pytest.approx([1.0, 1.0])  # not beyond alpha_c
+    u = np.radians(2.0)
+    assert 1.0 - f[2] == pytest.approx(0.3 * (1.0 - math.exp(-2.0 * u / 0.3)))
+    assert 1.0 - f[2] == pytest.approx(2.0 * u, rel=0.15)  # at first: about drop per rad
+    assert np.all(np.diff(f[2:]) < 0.0) and f[-1] == pytest.approx(0.7, abs=1e-3)
+    linear = sidewall_factor(rho, alpha, Sidewall(1.5, np.radians(6.0), 2.0))
+    assert linear[2] == pytest.approx(1.0 - 2.0 * u) and linear[-1] == 0.0
+    near = np.array([1.4, 1.45, 1.55, 1.6])  # the gate's width decides how far it leaks
+    soft, sharp = (
+        sidewall_factor(near, alpha[-1], Sidewall(1.5, np.radians(6.0), 2.0, 0.3, w))
+        for w in (0.05, 0.005)
+    )
+    assert (
+        1.0 - soft[0] > 0.05 and 1.0 - sharp[0] < 1e-4 and sharp[-1] == pytest.approx(0.7, abs=1e-3)
+    )
+    doc = json.loads(Effects({"/w": FULL}).to_json())
+    assert doc["wheels"]["/w"]["sidewall"]["depth"] == 0.4
+    del doc["wheels"]["/w"]["sidewall"]["depth"], doc["wheels"]["/w"]["sidewall"]["gate_width"]
+    path = tmp_path / "old.effects.json"
+    path.write_text(json.dumps(doc))
+    side = Effects.read(path).wheels["/w"].sidewall
+    assert side == (1.5, 0.1, 2.0, math.inf, 0.05)
+    again = json.loads(Effects({"/w": WheelEffects(sidewall=side)}).to_json())
+    assert "depth" not in again["wheels"]["/w"]["sidewall"]  # JSON has no inf: left out
+
+
 @pytest.mark.parametrize(
     ("mangle", "words"),
     [
@@ -172,6 +206,8 @@ def test_effects_file_round_trip(tmp_path):
         (lambda d: d["wheels"]["/w"]["thermal_slow"].pop("start_K"), ["thermal_slow.start_K"]),
         (lambda d: d["wheels"]["/w"].update(bulk={"tau_s": 1}), ["wheels./w.bulk"]),
         (lambda d: d["wheels"]["/w"]["sidewall"].pop("drop_per_rad"), ["sidewall.drop_per_rad"]),
+        (lambda d: d["wheels"]["/w"]["sidewall"].update(depth=1.5), ["sidewall.depth"]),
+        (lambda d: d["wheels"]["/w"]["sidewall"].update(gate_width=0), ["sidewall.gate_width"]),
         (lambda d: d["wheels"]["/w"].update(alpha_shift_rad="x"), ["alpha_shift_rad"]),
         (lambda d: d["wheels"]["/w"]["offsets"].update(Fq={"N": 1}), ["offsets.Fq"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(ln_Vs=[1, 0, 2]), ["speed_table"]),

@@ -22,7 +22,7 @@ import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from tire_model_ros.model import TireModel
-from tire_model_ros.model.states import relative_deflection, sidewall_factor
+from tire_model_ros.model.states import Sidewall, relative_deflection, sidewall_factor
 from tire_model_ros.recording.series import WheelSeries
 
 from .core import evaluate_on, nominal_inputs, stack_inputs
@@ -120,7 +120,7 @@ def find_sidewall(model: TireModel, sims: Sequence[WheelSeries]) -> SidewallFit 
     sigma = float(np.median([noise_sigma(np.asarray(s.Fy)) for s in lat]))
 
     def resid(x: F64) -> F64:
-        out: F64 = (pred * sidewall_factor(rho, alpha, (x[0], x[1], x[2])) - y) / sigma
+        out: F64 = (pred * sidewall_factor(rho, alpha, Sidewall(x[0], x[1], x[2])) - y) / sigma
         return out
 
     best = min(

@@ -34,7 +34,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -61,6 +61,17 @@ class Node:
     gain_per_W: float
 
 
+class Sidewall(NamedTuple):
+    """Sidewall contact (:func:`sidewall_factor`); a file without ``depth`` or
+    ``gate_width`` (written before they were fitted) reads as the form it was fitted with."""
+
+    threshold: float  # relative deflection where the gate opens
+    alpha_c_rad: float  # slip angle beyond which Fy drops
+    drop_per_rad: float  # the loss's initial slope
+    depth: float = math.inf  # the share of Fy the loss saturates at (inf: linear, unbounded)
+    gate_width: float = 0.05  # the gate's logistic width, a share of the threshold
+
+
 @dataclass(frozen=True)
 class WheelEffects:
     """The effects of one wheel (None: not part of the model)."""
@@ -75,8 +86,7 @@ class WheelEffects:
     alpha_shift_rad: float = 0.0  # ply-steer as a slip-angle shift, added to alpha
     T_lag_s: float = 0.0  # a measured temperature is lagged by this first-order node [s]
     speed_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (ln Vs, mu)
-    # Fy * (1 - drop gate(rho) max(|alpha| - alpha_c, 0)), rho the relative deflection
-    sidewall: tuple[float, float, float] | None = None  # (rho threshold, alpha_c rad, drop/rad)
+    sidewall: Sidewall | None = None  # Fy scaled by sidewall_factor
 
     def to_dict(self) -> dict[str, Any]:
         d: dict[str, Any] = {"T_amb_C": self.T_amb_C}
@@ -96,12 +106,15 @@ class WheelEffects:
         if self.speed_table is not None:
             d["speed_table"] = {"ln_Vs": list(self.speed_table[0]), "mu": list(self.speed_table[1])}
         if self.sidewall is not None:
-            th, a_c, drop = self.sidewall
+            sw = self.sidewall
             d["sidewall"] = {
-                "deflection_threshold": th,
-                "alpha_contact_rad": a_c,
-                "drop_per_rad": drop,
+                "deflection_threshold": sw.threshold,
+                "alpha_contact_rad": sw.alpha_c_rad,
+                "drop_per_rad": sw.drop_per_rad,
+                "gate_width": sw.gate_width,
             }
+            if math.isfinite(sw.depth):
+                d["sidewall"]["depth"] = sw.depth
         return d
 
 
@@ -196,13 +209,23 @@ def _table(t: Any, w: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
     return lnV, mu
 
 
-def _sidewall(d: object, w: str) -> tuple[float, float, float]:
+def _sidewall(d: object, w: str) -> Sidewall:
     if not isinstance(d, Mapping):
-        raise EffectsError(f"{w}: expected deflection_threshold, alpha_contact_rad, drop_per_rad")
-    return (
+        raise EffectsError(
+            f"{w}: expected deflection_threshold, alpha_contact_rad, drop_per_rad"
+            "[, depth, gate_width]"
+        )
+    optional = {}
+    for key, hi in (("depth", 1.0), ("gate_width", 1.0)):  # shares
+        if key in d:
+            optional[key] = _number(d, key, w, 0.0)
+            if optional[key] > hi or (key == "gate_width" and optional[key] == 0.0):
+                raise EffectsError(f"{w}.{key}: expected a share in (0, 1], got {d[key]!r}")
+    return Sidewall(
         _number(d, "deflection_threshold", w, 0.0),
         _number(d, "alpha_contact_rad", w, 0.0),
         _number(d, "drop_per_rad", w, 0.0),
+        **optional,
     )
 
 
@@ -251,12 +274,17 @@ def relative_deflection(Fz: Any, FNOMIN: float, p_gauge_Pa: Any, p_nom_Pa: float
     return (Fz / FNOMIN) / np.maximum(ratio, 0.05)
 
 
-def sidewall_factor(rho: Any, alpha_rad: Any, params: tuple[float, float, float]) -> Any:
-    """The Fy factor of sidewall contact: 1 - drop g(rho) max(|alpha| - alpha_c, 0), g a
-    logistic gate of width 5 % of the threshold."""
-    th, a_c, drop = params
-    gate = 1.0 / (1.0 + np.exp(-np.clip((rho - th) / (0.05 * th), -50.0, 50.0)))
-    return np.maximum(1.0 - drop * gate * np.maximum(np.abs(alpha_rad) - a_c, 0.0), 0.0)
+def sidewall_factor(rho: Any, alpha_rad: Any, sw: Sidewall) -> Any:
+    """The Fy factor of sidewall contact: 1 - g(rho) depth (1 - exp(-drop u / depth)),
+    u = max(|alpha| - alpha_c, 0), g a logistic gate in the relative deflection rho around the
+    threshold, ``gate_width`` of it wide. The loss grows at ``drop`` per rad beyond alpha_c
+    and levels off at ``depth`` of Fy (the crown cannot lose more than it carries); ``depth``
+    inf is the linear loss drop u."""
+    th, a_c, drop, depth, width = sw
+    gate = 1.0 / (1.0 + np.exp(-np.clip((rho - th) / (width * th), -50.0, 50.0)))
+    u = np.maximum(np.abs(alpha_rad) - a_c, 0.0)
+    loss = drop * u if math.isinf(depth) else depth * -np.expm1(-drop * u / max(depth, 1e-9))
+    return np.maximum(1.0 - gate * loss, 0.0)
 
 
 class EffectState:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from tire_model_ros.model.states import relative_deflection, sidewall_factor
+from tire_model_ros.model.states import Sidewall, relative_deflection, sidewall_factor
 
 from ..prepare import Context
 from .base import Array, EffectModel, Index, Mask, Param
@@ -28,6 +28,12 @@ from .curve import curve_shapes
 BEYOND_PEAK_SLOPE = 0.3
 MIN_CORNER_SHARE = 0.01  # of the samples past the peak above their median deflection
 DROP_ACTS = 1e-3  # a factor this far below 1: the fitted drop acts there (its support)
+# The share of Fy the drop saturates at: starts at the seed paper's order (a third), at least
+# a few per cent (below that the drop is within the noise), at most all of it.
+DEPTH_START, DEPTH_MIN = 0.3, 0.02
+# The gate's width, a share of its threshold (start, least, most): how sharply the sidewall
+# takes over is the tyre's, from a step (a hard contact) to a gradual one.
+GATE_WIDTH = (0.05, 0.005, 0.2)
 
 
 def deflection(ctx: Context) -> Array:
@@ -49,8 +55,12 @@ def _corner(ctx: Context) -> Mask:
 
 
 class SidewallContact(EffectModel):
-    """Fy scaled by 1 - d g(rho) max(|alpha| - alpha_c, 0): g a smooth gate that opens as the
-    relative deflection rho passes its threshold (:func:`~..model.states.sidewall_factor`).
+    """Fy scaled by 1 - g(rho) D (1 - exp(-d u / D)), u = max(|alpha| - alpha_c, 0): g a
+    smooth gate (of fitted width) that opens as the relative deflection rho passes its
+    threshold, the loss
+    growing at d per rad beyond alpha_c and saturating at the share D of Fy
+    (:func:`~..model.states.sidewall_factor`): a corner beyond the trained slip angles is not
+    predicted to lose without bound.
 
     ``gated`` False is its control: the same drop beyond alpha_c at every deflection.
     """
@@ -80,6 +90,8 @@ class SidewallContact(EffectModel):
                 th,
                 Param("alpha_contact_rad", 0.6 * a_max, 0.2 * a_max, a_max, 0.02),
                 Param("drop_per_rad", 0.5, 0.0, 10.0, 0.3),
+                Param("depth", DEPTH_START, DEPTH_MIN, 1.0, 0.1),
+                Param("gate_width", *GATE_WIDTH, 0.02, fitted=gated),  # the control: open
             ],
             [{"deflection_threshold": q[0.6]}, {"deflection_threshold": q[0.9]}] if gated else [],
         )
@@ -101,13 +113,16 @@ class SidewallContact(EffectModel):
         if x is None:
             return _corner(ctx)
         alpha = ctx.wheel.x("alpha")
-        f = sidewall_factor(deflection(ctx), alpha, (float(x[0]), float(x[1]), float(x[2])))
+        f = sidewall_factor(deflection(ctx), alpha, _params(x))
         return np.asarray(f < 1.0 - DROP_ACTS, dtype=np.bool_)
 
     def output(self, x: Array, ctx: Context, out: dict[str, Array], rows: Index) -> None:
-        params = (float(x[0]), float(x[1]), float(x[2]))
         alpha = ctx.wheel.x("alpha")[rows]
-        out["Fy"] = out["Fy"] * sidewall_factor(deflection(ctx)[rows], alpha, params)
+        out["Fy"] = out["Fy"] * sidewall_factor(deflection(ctx)[rows], alpha, _params(x))
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
-        return {"sidewall": (float(x[0]), float(x[1]), float(x[2]))}
+        return {"sidewall": _params(x)}
+
+
+def _params(x: Array) -> Sidewall:
+    return Sidewall(*(float(v) for v in x))
