@@ -188,6 +188,7 @@ def test_sidewall_loss_saturates_at_its_depth_and_older_files_read_as_fitted(tmp
     doc = json.loads(Effects({"/w": FULL}).to_json())
     assert doc["wheels"]["/w"]["sidewall"]["depth"] == 0.4
     del doc["wheels"]["/w"]["sidewall"]["depth"], doc["wheels"]["/w"]["sidewall"]["gate_width"]
+    doc["version"] = 2  # as the diagnosis wrote it before
     path = tmp_path / "old.effects.json"
     path.write_text(json.dumps(doc))
     side = Effects.read(path).wheels["/w"].sidewall
@@ -200,14 +201,15 @@ def test_sidewall_loss_saturates_at_its_depth_and_older_files_read_as_fitted(tmp
     ("mangle", "words"),
     [
         (lambda d: d.update(format="x"), ["format"]),
-        (lambda d: d.update(version=3), ["version"]),
+        (lambda d: d.update(version=4), ["version"]),
         (lambda d: d.update(wheels={}), ["wheels"]),
         (lambda d: d["wheels"]["/w"]["thermal"].update(tau_s=-1.0), ["wheels./w.thermal.tau_s"]),
         (lambda d: d["wheels"]["/w"]["thermal_slow"].pop("start_K"), ["thermal_slow.start_K"]),
         (lambda d: d["wheels"]["/w"].update(bulk={"tau_s": 1}), ["wheels./w.bulk"]),
         (lambda d: d["wheels"]["/w"]["sidewall"].pop("drop_per_rad"), ["sidewall.drop_per_rad"]),
-        (lambda d: d["wheels"]["/w"]["sidewall"].update(depth=1.5), ["sidewall.depth"]),
-        (lambda d: d["wheels"]["/w"]["sidewall"].update(gate_width=0), ["sidewall.gate_width"]),
+        (lambda d: d["wheels"]["/w"]["sidewall"].update(depth=1.5), ["sidewall", "depth"]),
+        (lambda d: d["wheels"]["/w"]["sidewall"].update(gate_width=0), ["sidewall", "gate_width"]),
+        (lambda d: d["wheels"]["/w"]["sidewall"].update(deflection_threshold=0), ["sidewall"]),
         (lambda d: d["wheels"]["/w"].update(alpha_shift_rad="x"), ["alpha_shift_rad"]),
         (lambda d: d["wheels"]["/w"]["offsets"].update(Fq={"N": 1}), ["offsets.Fq"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(ln_Vs=[1, 0, 2]), ["speed_table"]),

@@ -44,8 +44,9 @@ if TYPE_CHECKING:
     from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
-VERSION = 2
-READS = (1, 2)  # version 1 (no slow node, shift or sidewall) reads as a subset of 2
+VERSION = 3  # 3: sidewall contact with depth and gate_width (a reader of 2 would drop them)
+READS = (1, 2, 3)  # 1 (no slow node, shift or sidewall) and 2 (sidewall without depth and
+# gate_width: the linear loss behind a 5 % gate) read as subsets of 3
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 NODES = ("thermal", "thermal_slow", "gas")
@@ -215,14 +216,15 @@ def _sidewall(d: object, w: str) -> Sidewall:
             f"{w}: expected deflection_threshold, alpha_contact_rad, drop_per_rad"
             "[, depth, gate_width]"
         )
-    optional = {}
-    for key, hi in (("depth", 1.0), ("gate_width", 1.0)):  # shares
-        if key in d:
-            optional[key] = _number(d, key, w, 0.0)
-            if optional[key] > hi or (key == "gate_width" and optional[key] == 0.0):
-                raise EffectsError(f"{w}.{key}: expected a share in (0, 1], got {d[key]!r}")
+    threshold = _number(d, "deflection_threshold", w, 0.0)
+    optional = {k: _number(d, k, w, 0.0) for k in ("depth", "gate_width") if k in d}
+    if threshold == 0.0 or optional.get("gate_width") == 0.0 or optional.get("depth", 0.0) > 1:
+        raise EffectsError(
+            f"{w}: expected deflection_threshold > 0, depth a share of Fy in [0, 1] and "
+            f"gate_width a share of the threshold > 0, got {dict(d)!r}"
+        )
     return Sidewall(
-        _number(d, "deflection_threshold", w, 0.0),
+        threshold,
         _number(d, "alpha_contact_rad", w, 0.0),
         _number(d, "drop_per_rad", w, 0.0),
         **optional,

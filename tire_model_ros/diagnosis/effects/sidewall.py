@@ -56,11 +56,11 @@ def _corner(ctx: Context) -> Mask:
 
 class SidewallContact(EffectModel):
     """Fy scaled by 1 - g(rho) D (1 - exp(-d u / D)), u = max(|alpha| - alpha_c, 0): g a
-    smooth gate (of fitted width) that opens as the relative deflection rho passes its
-    threshold, the loss
-    growing at d per rad beyond alpha_c and saturating at the share D of Fy
-    (:func:`~..model.states.sidewall_factor`): a corner beyond the trained slip angles is not
-    predicted to lose without bound.
+    smooth gate of fitted width that opens as the relative deflection rho passes its
+    threshold, the loss growing at d per rad beyond alpha_c and levelling off at the share D
+    of Fy (:func:`~..model.states.sidewall_factor`): a corner beyond the trained slip angles
+    is not predicted to lose without bound, nor one just below the trained deflections to
+    lose through a gate wider than the data show.
 
     ``gated`` False is its control: the same drop beyond alpha_c at every deflection.
     """
