@@ -218,11 +218,13 @@ def _sidewall(d: object, w: str) -> Sidewall:
         )
     threshold = _number(d, "deflection_threshold", w, 0.0)
     optional = {k: _number(d, k, w, 0.0) for k in ("depth", "gate_width") if k in d}
-    if threshold == 0.0 or optional.get("gate_width") == 0.0 or optional.get("depth", 0.0) > 1:
-        raise EffectsError(
-            f"{w}: expected deflection_threshold > 0, depth a share of Fy in [0, 1] and "
-            f"gate_width a share of the threshold > 0, got {dict(d)!r}"
-        )
+    for key, bad, want in (
+        ("deflection_threshold", threshold == 0.0, "> 0 (the gate is relative to it)"),
+        ("gate_width", optional.get("gate_width") == 0.0, "a share of the threshold > 0"),
+        ("depth", optional.get("depth", 0.0) > 1.0, "a share of Fy in [0, 1]"),
+    ):
+        if bad:
+            raise EffectsError(f"{w}.{key}: expected {want}, got {d[key]!r}")
     return Sidewall(
         threshold,
         _number(d, "alpha_contact_rad", w, 0.0),
