@@ -6,6 +6,7 @@ One :class:`Wheel` per recorded wheel (the diagnosis runs per wheel), and one
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,7 +29,8 @@ CHANNELS = DIAGNOSED_CHANNELS  # the measured channels compared; Fx, Fy are sele
 MIN_SAMPLES = 50
 MIN_BLOCKS = 6  # fewer whole sweeps than this: time blocks instead
 TIME_BLOCK_S = (2.0, 15.0)  # a time block spans 4 correlation times of the residual, within
-INPUT_SMOOTH_S = 0.09  # window of the zero-phase input smoother [s]
+SMOOTH_WINDOWS = (5, 7, 9, 11, 15, 21, 31, 41)  # candidate input smoother windows [samples]
+SMOOTHED = ("kappa", "alpha", "gamma", "Fz", "V")  # recorded inputs smoothed (p, T: not)
 FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows are redundant)
 # Convention for a hidden temperature (PHYSICS.md: the heat gain and the TTX/TTY coefficients
 # are not separately identifiable with T hidden): a node's steady rise at the 95th-percentile
@@ -52,6 +54,7 @@ class Wheel:
     block_id: npt.NDArray[np.int64]  # block number per sample
     fold: npt.NDArray[np.int8]  # 0, 1 (selection folds) or 2 (final held-out) per sample
     scramble: Index  # sample order of a block-shuffled copy of a driver (controls)
+    smoothing: dict[str, int] = field(default_factory=dict)  # input smoother windows [samples]
 
     @property
     def n(self) -> int:
@@ -94,20 +97,37 @@ def _fill(x: Array) -> Array:
     return np.where(ok, x, np.median(x[ok]) if ok.any() else 0.0)
 
 
-def _smooth(x: Array, t: Array, window_s: float = INPUT_SMOOTH_S) -> Array:
-    """Zero-phase Savitzky-Golay smoothing of a recorded input (no lag, ramps kept exact).
+def _centre_weight(w: int) -> float:
+    """The centre coefficient of a quadratic Savitzky-Golay window of ``w`` samples (the trace
+    of its smoother matrix per sample)."""
+    m = (w - 1) // 2
+    return 3.0 * (3 * m * m + 3 * m - 1) / ((2 * m - 1) * (2 * m + 1) * (2 * m + 3))
+
+
+def smooth(x: Array) -> tuple[Array, int]:
+    """Zero-phase Savitzky-Golay smoothing of a recorded input, its window chosen from the
+    channel itself by generalised cross-validation; returns the smoothed input and the window
+    [samples].
 
     Recorded slip carries sensor noise; through the slip stiffness it is as large as the force
     noise. Left in, any model that low-passes the inputs (relaxation, a delay's filter) would
-    gain by denoising rather than by physics. A zero-phase filter takes that away from all
-    models alike without shifting anything in time.
+    gain by denoising rather than by physics. Smoothed too much, a fast input (a car's load
+    transfer, a brake's slip) is distorted, and every model inherits that error as a floor. The
+    window that best recovers the true input (GCV, Craven and Wahba 1979: the residual divided
+    by the smoother's lost degrees of freedom) leaves the least of either, per channel: a rig's
+    slow sweeps take long windows, a car's fast load and slip short ones. A quadratic fit keeps
+    ramps exact and the filter shifts nothing in time.
     """
-    dts = np.diff(t)
-    dt = float(np.median(dts[dts > 0])) if np.any(dts > 0) else 1.0
-    w = round(window_s / dt) | 1
-    if w < 5 or len(x) <= w:
-        return x
-    return np.asarray(savgol_filter(x, w, 2, mode="interp"), dtype=np.float64)
+    best, best_w = x, 1
+    best_gcv = math.inf
+    for w in SMOOTH_WINDOWS:
+        if len(x) <= w:
+            break
+        xs = np.asarray(savgol_filter(x, w, 2, mode="interp"), dtype=np.float64)
+        gcv = float(np.mean((x - xs) ** 2)) / (1.0 - _centre_weight(w)) ** 2
+        if gcv < best_gcv:
+            best, best_w, best_gcv = xs, w, gcv
+    return best, best_w
 
 
 def prepare_wheel(s: WheelSeries, model: TireModel, rng: np.random.Generator) -> Wheel:
@@ -131,15 +151,14 @@ def prepare_wheel(s: WheelSeries, model: TireModel, rng: np.random.Generator) ->
     if not meas:
         raise ValueError(f"{s.prefix}: no measured Fx, Fy or Mz")
     t = np.asarray(s.t, float) - float(s.t[0])
+    raw = {"kappa": s.kappa, "alpha": s.alpha, "gamma": s.gamma, "Fz": s.Fz, "V": V}
     inputs: dict[str, Array | None] = {
-        "kappa": _smooth(np.nan_to_num(s.kappa), t),
-        "alpha": _smooth(np.nan_to_num(s.alpha), t),
-        "gamma": _smooth(np.nan_to_num(s.gamma), t),
-        "Fz": _smooth(np.nan_to_num(s.Fz), t),
-        "V": _smooth(V, t),
         "p": None if s.p is None else _fill(np.asarray(s.p, float)),
         "T": None if s.T is None else _fill(np.asarray(s.T, float)),
     }
+    windows = {}
+    for key in SMOOTHED:
+        inputs[key], windows[key] = smooth(np.nan_to_num(np.asarray(raw[key], float)))
     kappa, alpha = inputs["kappa"], inputs["alpha"]
     assert kappa is not None and alpha is not None
     zero = np.zeros(n)
@@ -169,6 +188,7 @@ def prepare_wheel(s: WheelSeries, model: TireModel, rng: np.random.Generator) ->
         block_id,
         fold,
         scramble,
+        windows,
     )
 
 

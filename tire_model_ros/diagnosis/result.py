@@ -136,6 +136,10 @@ def finish(prefix: str, sel: Selection) -> WheelDiagnosis:
     log: list[str]
     ctx, log = trial.ctx, []  # this wheel's own notes (the selection's log is the recording's)
     w, rows_ab = ctx.wheel, ctx.rows["ab"]
+    log.append(
+        "inputs smoothed (zero-phase, window chosen per channel by GCV): "
+        + ", ".join(f"{k} {n} samples" for k, n in w.smoothing.items())
+    )
     models = trial.models
     x0 = np.mean([f.x for f in trial.fits], axis=0)
     # a tyre effect keeps the parameters it was fitted with to every wheel
