@@ -785,3 +785,32 @@ def test_backward_step_drops_the_effect_the_model_loses_least_without(monkeypatc
     out, _, _ = search._backward(cur, base, log, library)  # type: ignore[arg-type]
     assert out.keys == [("A", ""), ("C", "")]
     assert len(log) == 1 and log[0].startswith("dropped")
+
+
+def test_the_input_smoother_window_follows_each_channels_noise_and_pace():
+    """A slow sweep under sensor noise is smoothed over a long window, a fast input with little
+    noise over a short one (a fixed 90 ms window distorted a car's load transfer and brake
+    slip); either way the smoothed input is nearer the true one than the recorded."""
+    from tire_model_ros.diagnosis.prepare import SMOOTH_WINDOWS, smooth
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 60.0, 0.01)
+    slow = 0.1 * np.sin(2 * np.pi * t / 10.0)
+    fast = 1000.0 * np.sin(2 * np.pi * t / 0.2) * np.sin(2 * np.pi * t / 7.0)
+    for true, noise in ((slow, 3e-3), (fast, 5.0)):
+        rec = true + noise * rng.standard_normal(len(t))
+        out, w = smooth(rec)
+        assert np.sqrt(np.mean((out - true) ** 2)) < 0.8 * noise
+        if true is slow:
+            assert w >= 21, w
+        else:
+            assert w < 9, w
+            fixed = np.sqrt(np.mean((smooth_fixed(rec, 9) - true) ** 2))
+            assert np.sqrt(np.mean((out - true) ** 2)) < fixed
+    assert set(SMOOTH_WINDOWS) >= {5, 41}
+
+
+def smooth_fixed(x: np.ndarray, w: int) -> np.ndarray:
+    from scipy.signal import savgol_filter
+
+    return np.asarray(savgol_filter(x, w, 2, mode="interp"))
