@@ -640,6 +640,33 @@ def test_sidewall_contact_acts_where_its_fitted_gate_opens_and_has_an_ungated_co
     assert control.controls(ctx) == []
 
 
+def test_sidewall_gate_spans_the_deflections_the_fitted_rows_leave_open(model):
+    """Fitted rows that run past the contact slip angle only below rho 0.8 and above 1.4 do not
+    place the threshold between them: the settled gate is centred in that gap and spans it (a
+    corner the fit did not see gets the expected drop, not all or none); rows with no gap keep
+    the fitted gate."""
+    from tire_model_ros.diagnosis.effects.sidewall import SidewallContact, deflection
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+    from tire_model_ros.model.states import Sidewall, sidewall_factor
+
+    wheels, _ = _session(model, {"noise": True})
+    w = wheels[0]
+    ramp = dataclasses.replace(w, Fz=np.linspace(0.5, 1.6, len(w.t)) * model.params["FNOMIN"])
+    ctx = make_context(prepare_wheel(ramp, model, np.random.default_rng(0)), model)
+    (m,) = SidewallContact.propose(ctx)
+    rho = deflection(ctx)
+    x = np.array([0.85, np.radians(3.0), 3.0, 0.3, 0.05])
+    every = np.arange(ctx.wheel.n)
+    assert np.allclose(m.settle(x, [(ctx, every)]), x, rtol=0.02)  # no gap: as fitted
+    gap = np.flatnonzero((rho < 0.8) | (rho > 1.4))
+    sx = m.settle(x, [(ctx, gap[gap < ctx.wheel.n // 2]), (ctx, gap[gap >= ctx.wheel.n // 2])])
+    assert 1.0 < sx[0] < 1.25 and np.allclose(sx[1:4], x[1:4])
+    f = sidewall_factor(np.array([0.8, sx[0], 1.4]), np.radians(20.0), Sidewall(*sx))
+    loss = 1.0 - f
+    assert loss[0] < 0.1 * loss[2] and 0.3 < loss[1] / loss[2] < 0.7, loss
+    assert m.controls(ctx)[0].settle(x, [(ctx, gap)]) is x  # the control has no gate
+
+
 def test_a_tyre_effect_is_fitted_to_the_wheels_of_a_car_with_one_parameter_set(model):
     """Sidewall contact on two wheels of one tyre: the loaded one runs its sweeps at one
     deflection, so on it alone a drop gated by the deflection is no better than the same

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .effects.base import Array, EffectModel, Index, Mask
-from .predict import predict
+from .predict import predict, split_x
 from .prepare import Context
 
 MAX_NFEV = 40
@@ -131,9 +131,16 @@ def fit(
 
     names = [p.name for m in models for p in m.params]
     res = _least_squares(fun, x0, free, lo, hi, scale, names, models[-1].starts, max_nfev)
-    return Fit(
-        models, settle(models, full(res.x), ctx, rows), float(res.cost), len(res.fun), res.jac, free
+    # a model whose parameters were all held here (a tyre's, settled on every wheel) keeps them
+    x = settle(models, full(res.x), [(ctx, rows)])
+    parts = zip(
+        split_x(models, x),
+        split_x(models, x0),
+        split_x(models, free.astype(np.float64)),
+        strict=True,
     )
+    x = np.concatenate([xs if f.any() else xk for xs, xk, f in parts])
+    return Fit(models, x, float(res.cost), len(res.fun), res.jac, free)
 
 
 def fit_shared(
@@ -183,10 +190,14 @@ def fit_shared(
     names += [""] * (len(x0) - len(names))
     res = _least_squares(fun, x0, np.ones(len(x0), bool), lo, hi, scale, names, e.starts, max_nfev)
     fits = []
+    seen = [(ctx, rows) for _, ctx, rows, _, _ in parts]
     for (ms, ctx, rows, _, _), x, (_, fh, *_) in zip(parts, vectors(res.x), heads, strict=True):
         r = residuals(ms, x, ctx, rows)
         free = np.concatenate([fh, np.zeros(e.n, bool)])
-        fits.append(Fit(list(ms), settle(ms, x, ctx, rows), 0.5 * float(r @ r), len(r), None, free))
+        # the wheel's own models settle on its rows, the tyre's shared one on every wheel's
+        k = len(x) - e.n
+        x = np.concatenate([settle(ms[:-1], x[:k], [(ctx, rows)]), e.settle(x[k:], seen)])
+        fits.append(Fit(list(ms), x, 0.5 * float(r @ r), len(r), None, free))
     return fits
 
 
@@ -225,11 +236,11 @@ def _least_squares(  # type: ignore[no-untyped-def]
     return solve(xt, max_nfev)
 
 
-def settle(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> Array:
+def settle(models: Sequence[EffectModel], x: Array, seen: Sequence[tuple[Context, Index]]) -> Array:
     """``x`` after every model's ``settle`` on the rows it was fitted on."""
     out, i = [], 0
     for m in models:
-        out.append(m.settle(np.asarray(x[i : i + m.n], dtype=np.float64), ctx, rows))
+        out.append(m.settle(np.asarray(x[i : i + m.n], dtype=np.float64), seen))
         i += m.n
     return np.concatenate(out) if out else np.asarray(x, dtype=np.float64)
 

@@ -108,9 +108,10 @@ class EffectModel:
         it is applied to); zero when it is. Added to the fit's residuals, not to scores."""
         return np.zeros(0)
 
-    def settle(self, x: Array, ctx: Context, rows: Index) -> Array:
-        """``x`` with any parameter the fit's ``rows`` leave undetermined set to a neutral
-        value (after the fit has converged on ``rows``)."""
+    def settle(self, x: Array, seen: Sequence[tuple[Context, Index]]) -> Array:
+        """``x`` with any parameter the fitted rows leave undetermined set to a neutral value
+        (after the fit has converged); ``seen``: each fitted wheel's context and rows (every
+        wheel of a car for a tyre effect, one otherwise)."""
         return x
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:

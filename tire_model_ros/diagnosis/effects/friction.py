@@ -8,6 +8,7 @@ growing with the frictional work (never recovering), a plain trend in time, a st
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -170,7 +171,7 @@ class FrictionStep(EffectModel):
             if w.t[i1 - 1] - w.t[i0] >= self.STOP_MIN_S
         ]
 
-    def settle(self, x: Array, ctx: Context, rows: Index) -> Array:
+    def settle(self, x: Array, seen: Sequence[tuple[Context, Index]]) -> Array:
         """The change point to the belt stop in the gap between the fitted sweeps it lies in,
         else to the middle of the gap.
 
@@ -180,12 +181,13 @@ class FrictionStep(EffectModel):
         (a ramp): a sweep in the gap that the fit did not see is never given the wrong side
         of the step in full.
         """
+        ctx, rows = seen[0]  # a session's own change: one wheel
         w = ctx.wheel
         x = np.array(x, dtype=float)
         tc = float(x[0])
         moving = (np.abs(w.x("kappa")[rows]) > 0.005) | (np.abs(w.x("alpha")[rows]) > 0.01)
-        seen = w.t[rows][moving]
-        before, after = seen[seen < tc], seen[seen >= tc]
+        t_fit = w.t[rows][moving]
+        before, after = t_fit[t_fit < tc], t_fit[t_fit >= tc]
         x[2] = 0.0
         if len(before) and len(after):
             lo, hi = float(before.max()), float(after.min())

@@ -12,6 +12,7 @@ front wheel) is told from one that reaches the same slip angles less deflected.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -34,6 +35,10 @@ DEPTH_START, DEPTH_MIN = 0.3, 0.02
 # The gate's width, a share of its threshold (start, least, most): how sharply the sidewall
 # takes over is the tyre's, from a step (a hard contact) to a gradual one.
 GATE_WIDTH = (0.05, 0.005, 0.2)
+# A fitted row tells whether the gate is open only where the drop, were it open, would be at
+# least this share of its depth.
+TELLS_GATE = 0.25
+GATE_SPAN = 5.9  # logistic widths between its 5 % and 95 % points
 
 
 def deflection(ctx: Context) -> Array:
@@ -116,12 +121,46 @@ class SidewallContact(EffectModel):
         f = sidewall_factor(deflection(ctx), alpha, _params(x))
         return np.asarray(f < 1.0 - DROP_ACTS, dtype=np.bool_)
 
+    def settle(self, x: Array, seen: Sequence[tuple[Context, Index]]) -> Array:
+        """The gate across the gap in deflection that the fitted rows leave open.
+
+        Beyond the contact slip angle the fitted rows show the drop at some deflections and
+        not at others; between the most deflected row without it and the least deflected row
+        with it (on every wheel fitted, the tyre's) the cost is flat in the threshold, and a fit
+        leaves it at either edge. As for
+        a friction step between sweeps, the model predicts across the gap the expected drop
+        for a threshold uniform in it: the gate is centred in the gap and spans it (5 % to
+        95 %), never narrower than fitted. A corner the fit did not see is never given the
+        whole drop, or none of it, on the strength of an edge the data did not place.
+        """
+        if not self.gated:
+            return x
+        x = np.array(x, dtype=float)
+        th, a_c, drop, depth, width = _params(x)
+        rho = np.concatenate([_telling(ctx, rows, a_c, drop, depth) for ctx, rows in seen])
+        closed, opened = rho[rho < th], rho[rho >= th]
+        if not len(closed) or not len(opened):
+            return x
+        lo, hi = float(closed.max()), float(opened.min())
+        mid = 0.5 * (lo + hi)
+        x[0] = mid
+        x[4] = max(width * th / mid, (hi - lo) / (GATE_SPAN * mid))
+        return x
+
     def output(self, x: Array, ctx: Context, out: dict[str, Array], rows: Index) -> None:
         alpha = ctx.wheel.x("alpha")[rows]
         out["Fy"] = out["Fy"] * sidewall_factor(deflection(ctx)[rows], alpha, _params(x))
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return {"sidewall": _params(x)}
+
+
+def _telling(ctx: Context, rows: Index, a_c: float, drop: float, depth: float) -> Array:
+    """Deflections of the ``rows`` that tell whether the gate is open (slip angles where the
+    open gate's drop would be at least TELLS_GATE of its depth)."""
+    u = np.maximum(np.abs(ctx.wheel.x("alpha")[rows]) - a_c, 0.0)
+    tells = -np.expm1(-drop * u / max(depth, 1e-9)) >= TELLS_GATE
+    return np.asarray(deflection(ctx)[rows][tells], dtype=np.float64)
 
 
 def _params(x: Array) -> Sidewall:
