@@ -126,12 +126,12 @@ class SidewallContact(EffectModel):
 
         Beyond the contact slip angle the fitted rows show the drop at some deflections and
         not at others; between the most deflected row without it and the least deflected row
-        with it (on every wheel fitted, the tyre's) the cost is flat in the threshold, and a fit
-        leaves it at either edge. As for
-        a friction step between sweeps, the model predicts across the gap the expected drop
-        for a threshold uniform in it: the gate is centred in the gap and spans it (5 % to
-        95 %), never narrower than fitted. A corner the fit did not see is never given the
-        whole drop, or none of it, on the strength of an edge the data did not place.
+        with it (on every wheel fitted: the tyre's) the cost is flat in the threshold, and a
+        fit leaves it at either edge. As for a friction step between sweeps, the model
+        predicts across the gap the expected drop for a threshold uniform in it: the gate is
+        centred in the gap and spans it (5 % to 95 %), never narrower than fitted. A corner
+        the fit did not see is never given the whole drop, or none of it, on the strength of
+        an edge the data did not place.
         """
         if not self.gated:
             return x
