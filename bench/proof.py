@@ -15,7 +15,9 @@ Scoring (printed per generator, and totals; written as proof.json / proof.md):
 
 - strongest first: the first named effect is the truth's strongest (its largest ``ms_N2``,
   the mean square force change the effect makes, Fx and Fy together); a null must be ``none``;
-- all named: in multi-effect recordings, every true effect is among the named;
+- all named: in multi-effect recordings, every true effect is among the named (also counted
+  over the effects that change the forces by at least half the noise, RMS: the diagnosis names
+  none smaller by design);
 - false effects on nulls: effects named on null recordings (recordings with real-world
   imperfections that are not missing physics);
 - held-out RMSE (root-sum-square of Fx and Fy) before and after; the floor (the true physics'
@@ -43,12 +45,14 @@ import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 GENERATORS = ("flattrac", "brush", "car")
 DEVELOPED_ON = ("flattrac",)  # the diagnosis was tuned on this one; targets judge the others
 GENERATE_TIMEOUT_S = 900.0
 DIAGNOSE_TIMEOUT_S = 3600.0
+NOTICEABLE = 0.25  # ms_N2 / noise variance: an RMS change of half the noise
 
 
 @dataclass
@@ -58,6 +62,7 @@ class Outcome:
     seed: int
     truth: list[str] = field(default_factory=list)  # strongest first; [] = null
     concealed: list[str] = field(default_factory=list)
+    sizes: list[float] = field(default_factory=list)  # per true effect: ms_N2 / noise variance
     named: list[str] = field(default_factory=list)
     before: float = math.nan  # held-out RMSE, root-sum-square of Fx and Fy [N]
     after: float = math.nan
@@ -87,6 +92,12 @@ class Outcome:
         return len(set(self.truth) & set(self.named))
 
     @property
+    def visible(self) -> list[str]:
+        """True effects whose RMS change of the forces is at least half the force noise's
+        (ms_N2 >= NOTICEABLE x its variance); the diagnosis names none below that by design."""
+        return [n for n, v in zip(self.truth, self.sizes, strict=False) if v >= NOTICEABLE]
+
+    @property
     def false_on_null(self) -> int:
         if not self.null:
             return 0
@@ -113,7 +124,7 @@ class Outcome:
         return bool(self.ratio <= 0.5) if math.isfinite(self.ratio) else False
 
 
-def _rss(fit: dict, block: str) -> float:
+def _rss(fit: dict[str, Any], block: str) -> float:
     vals = [fit.get(block, {}).get(c, {}).get("rmse") for c in ("Fx", "Fy")]
     vals = [float(v) for v in vals if v is not None]
     return math.sqrt(sum(v * v for v in vals)) if vals else math.nan
@@ -151,6 +162,8 @@ def run_one(gen: str, case: str, seed: int, tmp: Path, out: Path) -> Outcome:
         truth = json.loads((hidden / "truth.json").read_text())
         o.truth = [e["name"] for e in truth.get("effects", [])]
         o.concealed = [e["name"] for e in truth.get("effects", []) if e.get("concealed")]
+        var = float(truth.get("noise", {}).get("force_noise_variance_N2") or math.nan)
+        o.sizes = [float(e.get("ms_N2", math.nan)) / var for e in truth.get("effects", [])]
         doc, ref = json.loads(diag_json.read_text()), json.loads(ref_json.read_text())
         o.named = [e["name"] for e in doc["effects"]]
         o.before, o.after = (
@@ -213,6 +226,9 @@ def totals(outs: list[Outcome]) -> dict[str, object]:
         "strongest_first": f"{sum(o.first_right for o in eff)}/{len(eff)}",
         "strongest_first_share": sum(o.first_right for o in eff) / max(len(eff), 1),
         "multi_all_effects": f"{sum(o.found for o in multi)}/{sum(len(o.truth) for o in multi)}",
+        # the same, of the effects that change the forces by half the noise or more
+        "multi_noticeable_effects": f"{sum(len(set(o.visible) & set(o.named)) for o in multi)}/"
+        f"{sum(len(o.visible) for o in multi)}",
         "nulls_clean": f"{sum(o.false_on_null == 0 for o in nulls)}/{len(nulls)}",
         "false_effects_on_nulls": sum(o.false_on_null for o in nulls),
         "halved_where_floor_allows": f"{sum(bool(o.halved) for o in can)}/{len(can)}",
