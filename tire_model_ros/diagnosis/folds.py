@@ -84,49 +84,30 @@ def assign_folds(
 
     Blocks at a rare condition (pressure or camber away from the session's usual value, or a
     slip swept far beyond the usual reach) are few and are stratified per kind of sweep (see
-    :func:`rare_folds`). The other blocks are taken three at a time, each triple getting a
-    random permutation of the folds: in time order within each mix of sweeps
-    (:func:`sweep_mix`), so that every fold spans the whole session and a programme that
-    repeats its sweeps in a cycle (pure drive slip, then combined at two slip angles, at each
-    speed) does not send every block of one mix to the final held-out fold.
+    :func:`rare_folds`). The other blocks are taken three at a time in time order, each
+    triple getting a random permutation of the folds, so that every fold spans the whole
+    session.
     """
     fold = np.zeros(len(t), dtype=np.int8)
     bl = blocks(segments, t, block_s)
     reach = usual_reach(segments, bl, inputs)
     rare = [rare_kind(segments, b, inputs, reach) for b in bl]
     rare_fold = rare_folds(rare, rng)
-    common: list[tuple[tuple[int, ...], int, list[int]]] = []
+    common = []
     for j, b in enumerate(bl):
         if rare[j] is None:
-            common.append((sweep_mix(segments, b, inputs), j, b))
+            common.append(b)
             continue
         f = rare_fold[j]
         first = int(rng.integers(2))
         for n, i in enumerate(b):  # a split block: way out in one fold, way back in the other
             fold[segments[i].index] = f if f != SPLIT else (first + n) % 2
-    ordered = [b for _, _, b in sorted(common, key=lambda c: c[:2])]
-    for j in range(0, len(ordered), 3):
+    for j in range(0, len(common), 3):
         perm = rng.permutation(3)
-        for k, b in enumerate(ordered[j : j + 3]):
+        for k, b in enumerate(common[j : j + 3]):
             for i in b:
                 fold[segments[i].index] = int(perm[k])
     return fold
-
-
-def sweep_mix(
-    segments: Sequence[Segment], block: Sequence[int], inputs: Mapping[str, Array | None]
-) -> tuple[int, ...]:
-    """The block's shares (in quarters) of samples that sweep the slip ratio alone, the slip
-    angle alone and both (each beyond MIN_SWEEP_SHARE of the session's largest)."""
-    idx = np.concatenate([segments[i].index for i in block])
-    on = []
-    for key in ("kappa", "alpha"):
-        slip = inputs[key]
-        assert slip is not None
-        top = float(np.max(np.abs(slip)))
-        on.append(np.abs(slip[idx]) >= max(MIN_SWEEP_SHARE * top, 1e-12))
-    x, y = on
-    return tuple(round(4.0 * float(np.mean(m))) for m in (x & ~y, y & ~x, x & y))
 
 
 def rare_folds(rare: Sequence[Rare | None], rng: np.random.Generator) -> dict[int, int]:
