@@ -28,7 +28,8 @@ from .predict import predict
 from .prepare import Context
 
 MAX_EFFECTS = 5
-OCCAM_MARGIN = 0.02  # held-out RMS within 2 % of the best: the fewer parameters win
+OCCAM_MARGIN = 0.02  # held-out RMS within 2 % of the best: the fewer parameters win ...
+ONE_SE = 1.0  # ... or within one standard error of it (paired over held-out sweeps)
 # Conditions the two halves of a session are compared on: load / FNOMIN, pressure / nominal,
 # speed [m/s] and inclination [deg] to these steps; at least MIN_COMMON_ROWS rows of one in
 # each half, and MIN_COMMON_SHARE of the rows in such conditions, or no comparison is made.
@@ -284,14 +285,17 @@ def _n_params(t: Joint, library: dict[Key, dict[str, EffectModel]]) -> int:
 
 def _ranked(trials: Sequence[Joint], library: dict[Key, dict[str, EffectModel]]) -> list[Joint]:
     """The significant trials, best held-out first, the fewest parameters first among those
-    within OCCAM_MARGIN of the best, unless a richer one of those predicts the held-out
-    sweeps consistently better than the simpler (the data tell them apart: no tie)."""
+    the best does not beat by more than OCCAM_MARGIN or one standard error of the per-sweep
+    difference (the one-standard-error rule of cross-validation: a richer law that wins on a
+    few sweeps and loses on most is not told apart), unless a richer one of those predicts
+    the held-out sweeps consistently better than the simpler (the data tell them apart: no
+    tie)."""
     ok = sorted(
         (t for t in trials if t.vs is not None and t.vs.significant), key=lambda t: t.score.rms
     )
     if not ok:
         return []
-    near = [t for t in ok if t.score.rms <= ok[0].score.rms * (1.0 + OCCAM_MARGIN)]
+    near = [t for t in ok if _near(ok[0], t)]
     near.sort(key=lambda t: (_n_params(t, library), t.score.rms))
     first = near[0]
     for t in near[1:]:
@@ -300,6 +304,13 @@ def _ranked(trials: Sequence[Joint], library: dict[Key, dict[str, EffectModel]])
             first = t
     near = [first] + [t for t in near if t is not first]
     return near + [t for t in ok if t not in near]
+
+
+def _near(best: Joint, t: Joint) -> bool:
+    """``t``'s held-out RMS is within OCCAM_MARGIN or ONE_SE of ``best``'s."""
+    if t.score.rms <= best.score.rms * (1.0 + OCCAM_MARGIN):
+        return True
+    return ev.compare(t.score, best.score).t_stat <= ONE_SE
 
 
 def _believed(
