@@ -19,6 +19,7 @@ from tire_model_ros.model.states import (
     Node,
     Sidewall,
     WheelEffects,
+    contact_alpha,
     sidewall_factor,
 )
 
@@ -187,21 +188,40 @@ def test_sidewall_loss_saturates_at_its_depth_and_older_files_read_as_fitted(tmp
     )
     doc = json.loads(Effects({"/w": FULL}).to_json())
     assert doc["wheels"]["/w"]["sidewall"]["depth"] == 0.4
-    del doc["wheels"]["/w"]["sidewall"]["depth"], doc["wheels"]["/w"]["sidewall"]["gate_width"]
+    for key in ("depth", "gate_width", "alpha_c_per_rho"):
+        del doc["wheels"]["/w"]["sidewall"][key]
     doc["version"] = 2  # as the diagnosis wrote it before
     path = tmp_path / "old.effects.json"
     path.write_text(json.dumps(doc))
     side = Effects.read(path).wheels["/w"].sidewall
-    assert side == (1.5, 0.1, 2.0, math.inf, 0.05)
+    assert side == (1.5, 0.1, 2.0, math.inf, 0.05, 0.0)
     again = json.loads(Effects({"/w": WheelEffects(sidewall=side)}).to_json())
     assert "depth" not in again["wheels"]["/w"]["sidewall"]  # JSON has no inf: left out
+
+
+def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_deflected():
+    """alpha_c holds at the threshold deflection and falls by alpha_c_per_rho per unit of
+    deflection past it (never below 0); a version 3 file (alpha_c fixed) reads with 0."""
+    sw = Sidewall(1.5, 0.15, 3.0, 0.2, 0.01, 0.1)
+    rho = np.array([1.5, 1.7, 2.0, 4.0])
+    assert contact_alpha(rho, sw) == pytest.approx([0.15, 0.13, 0.10, 0.0])
+    alpha = np.full(rho.shape, 0.14)  # beyond the contact angle only once deflected past 1.6
+    f = sidewall_factor(rho, alpha, sw)
+    assert f[0] == pytest.approx(1.0, abs=1e-6) and np.all(np.diff(f) < 0.0)
+    fixed = sidewall_factor(rho, alpha, sw._replace(alpha_c_per_rho=0.0))
+    assert np.all(fixed > 1.0 - 1e-6)  # alpha_c fixed: 0.14 rad never reaches it
+    doc = json.loads(Effects({"/w": WheelEffects(sidewall=sw)}).to_json())
+    assert doc["version"] == 4 and doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"] == 0.1
+    del doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"]
+    doc["version"] = 3
+    assert Effects.from_dict(doc).wheels["/w"].sidewall == sw._replace(alpha_c_per_rho=0.0)
 
 
 @pytest.mark.parametrize(
     ("mangle", "words"),
     [
         (lambda d: d.update(format="x"), ["format"]),
-        (lambda d: d.update(version=4), ["version"]),
+        (lambda d: d.update(version=5), ["version"]),
         (lambda d: d.update(wheels={}), ["wheels"]),
         (lambda d: d["wheels"]["/w"]["thermal"].update(tau_s=-1.0), ["wheels./w.thermal.tau_s"]),
         (lambda d: d["wheels"]["/w"]["thermal_slow"].pop("start_K"), ["thermal_slow.start_K"]),

@@ -44,9 +44,10 @@ if TYPE_CHECKING:
     from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
-VERSION = 3  # 3: sidewall contact with depth and gate_width (a reader of 2 would drop them)
-READS = (1, 2, 3)  # 1 (no slow node, shift or sidewall) and 2 (sidewall without depth and
-# gate_width: the linear loss behind a 5 % gate) read as subsets of 3
+VERSION = 4  # 4: sidewall contact at a slip angle that falls with the deflection (a reader of
+# 3 would drop alpha_c_per_rho)
+READS = (1, 2, 3, 4)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth and
+# gate_width: the linear loss behind a 5 % gate) and 3 (its slip angle fixed) read as subsets
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 NODES = ("thermal", "thermal_slow", "gas")
@@ -63,14 +64,16 @@ class Node:
 
 
 class Sidewall(NamedTuple):
-    """Sidewall contact (:func:`sidewall_factor`); a file without ``depth`` or
-    ``gate_width`` (written before they were fitted) reads as the form it was fitted with."""
+    """Sidewall contact (:func:`sidewall_factor`); a file without ``depth``, ``gate_width``
+    or ``alpha_c_per_rho`` (written before they were fitted) reads as the form it was fitted
+    with."""
 
     threshold: float  # relative deflection where the gate opens
     alpha_c_rad: float  # slip angle beyond which Fy drops
     drop_per_rad: float  # the loss's initial slope
     depth: float = math.inf  # the share of Fy the loss saturates at (inf: linear, unbounded)
     gate_width: float = 0.05  # the gate's logistic width, a share of the threshold
+    alpha_c_per_rho: float = 0.0  # alpha_c falls by this [rad] per unit of rho past threshold
 
 
 @dataclass(frozen=True)
@@ -113,6 +116,7 @@ class WheelEffects:
                 "alpha_contact_rad": sw.alpha_c_rad,
                 "drop_per_rad": sw.drop_per_rad,
                 "gate_width": sw.gate_width,
+                "alpha_c_per_rho": sw.alpha_c_per_rho,
             }
             if math.isfinite(sw.depth):
                 d["sidewall"]["depth"] = sw.depth
@@ -214,10 +218,12 @@ def _sidewall(d: object, w: str) -> Sidewall:
     if not isinstance(d, Mapping):
         raise EffectsError(
             f"{w}: expected deflection_threshold, alpha_contact_rad, drop_per_rad"
-            "[, depth, gate_width]"
+            "[, depth, gate_width, alpha_c_per_rho]"
         )
     threshold = _number(d, "deflection_threshold", w, 0.0)
-    optional = {k: _number(d, k, w, 0.0) for k in ("depth", "gate_width") if k in d}
+    optional = {
+        k: _number(d, k, w, 0.0) for k in ("depth", "gate_width", "alpha_c_per_rho") if k in d
+    }
     for key, bad, want in (
         ("deflection_threshold", threshold == 0.0, "> 0 (the gate is relative to it)"),
         ("gate_width", optional.get("gate_width") == 0.0, "a share of the threshold > 0"),
@@ -278,15 +284,22 @@ def relative_deflection(Fz: Any, FNOMIN: float, p_gauge_Pa: Any, p_nom_Pa: float
     return (Fz / FNOMIN) / np.maximum(ratio, 0.05)
 
 
+def contact_alpha(rho: Any, sw: Sidewall) -> Any:
+    """The slip angle [rad] where the sidewall meets the road: alpha_c at the threshold
+    deflection, less the more the tyre is deflected (a lower sidewall reaches the road at a
+    smaller lateral displacement of the contact patch), never below 0."""
+    return np.maximum(sw.alpha_c_rad - sw.alpha_c_per_rho * (rho - sw.threshold), 0.0)
+
+
 def sidewall_factor(rho: Any, alpha_rad: Any, sw: Sidewall) -> Any:
     """The Fy factor of sidewall contact: 1 - g(rho) depth (1 - exp(-drop u / depth)),
     u = max(|alpha| - alpha_c, 0), g a logistic gate in the relative deflection rho around the
     threshold, ``gate_width`` of it wide. The loss grows at ``drop`` per rad beyond alpha_c
     and levels off at ``depth`` of Fy (the crown cannot lose more than it carries); ``depth``
     inf is the linear loss drop u."""
-    th, a_c, drop, depth, width = sw
+    th, _, drop, depth, width, _ = sw
     gate = 1.0 / (1.0 + np.exp(-np.clip((rho - th) / (width * th), -50.0, 50.0)))
-    u = np.maximum(np.abs(alpha_rad) - a_c, 0.0)
+    u = np.maximum(np.abs(alpha_rad) - contact_alpha(rho, sw), 0.0)
     loss = drop * u if math.isinf(depth) else depth * -np.expm1(-drop * u / max(depth, 1e-9))
     return np.maximum(1.0 - gate * loss, 0.0)
 

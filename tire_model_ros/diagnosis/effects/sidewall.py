@@ -17,7 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from tire_model_ros.model.states import Sidewall, relative_deflection, sidewall_factor
+from tire_model_ros.model.states import (
+    Sidewall,
+    contact_alpha,
+    relative_deflection,
+    sidewall_factor,
+)
 
 from ..prepare import Context
 from .base import Array, EffectModel, Index, Mask, Param
@@ -97,6 +102,7 @@ class SidewallContact(EffectModel):
                 Param("drop_per_rad", 0.5, 0.0, 10.0, 0.3),
                 Param("depth", DEPTH_START, DEPTH_MIN, 1.0, 0.1),
                 Param("gate_width", *GATE_WIDTH, 0.02, fitted=gated),  # the control: open
+                Param("alpha_c_per_rho", 0.0, 0.0, a_max / max(hi - q[0.5], 1e-3), 0.05),
             ],
             [{"deflection_threshold": q[0.6]}, {"deflection_threshold": q[0.9]}] if gated else [],
         )
@@ -136,13 +142,15 @@ class SidewallContact(EffectModel):
         if not self.gated:
             return x
         x = np.array(x, dtype=float)
-        th, a_c, drop, depth, width = _params(x)
-        rho = np.concatenate([_telling(ctx, rows, a_c, drop, depth) for ctx, rows in seen])
+        sw = _params(x)
+        th, width = sw.threshold, sw.gate_width
+        rho = np.concatenate([_telling(ctx, rows, sw) for ctx, rows in seen])
         closed, opened = rho[rho < th], rho[rho >= th]
         if not len(closed) or not len(opened):
             return x
         lo, hi = float(closed.max()), float(opened.min())
         mid = 0.5 * (lo + hi)
+        x[1] = float(contact_alpha(mid, sw))  # the same contact slip angles, re-anchored
         x[0] = mid
         x[4] = max(width * th / mid, (hi - lo) / (GATE_SPAN * mid))
         return x
@@ -155,12 +163,13 @@ class SidewallContact(EffectModel):
         return {"sidewall": _params(x)}
 
 
-def _telling(ctx: Context, rows: Index, a_c: float, drop: float, depth: float) -> Array:
+def _telling(ctx: Context, rows: Index, sw: Sidewall) -> Array:
     """Deflections of the ``rows`` that tell whether the gate is open (slip angles where the
     open gate's drop would be at least TELLS_GATE of its depth)."""
-    u = np.maximum(np.abs(ctx.wheel.x("alpha")[rows]) - a_c, 0.0)
-    tells = -np.expm1(-drop * u / max(depth, 1e-9)) >= TELLS_GATE
-    return np.asarray(deflection(ctx)[rows][tells], dtype=np.float64)
+    rho = deflection(ctx)[rows]
+    u = np.maximum(np.abs(ctx.wheel.x("alpha")[rows]) - contact_alpha(rho, sw), 0.0)
+    tells = -np.expm1(-sw.drop_per_rad * u / max(sw.depth, 1e-9)) >= TELLS_GATE
+    return np.asarray(rho[tells], dtype=np.float64)
 
 
 def _params(x: Array) -> Sidewall:
