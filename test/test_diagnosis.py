@@ -225,6 +225,26 @@ def test_a_concealed_pressure_rising_like_a_ramp_is_named_pressure_not_drift(mod
     assert "drift" not in names
 
 
+def test_a_pre_warmed_sealed_tyre_cooling_back_is_named_pressure(model):
+    """A sealed tyre that comes to the rig warm (its gas above ambient) loses pressure as the
+    gas cools back over minutes: the hidden gas node starts pre-warmed. The forces here are
+    the file's at a pressure 10 % high at the start, falling back with a 150 s time constant,
+    with the rig's noise; no pressure recorded."""
+    wheels, _ = _session(model, {"noise": True})
+    w = wheels[0]
+    assert w.p is not None
+    clean = model.evaluate(w.Fz, w.kappa, w.alpha, w.gamma, w.Vx, w.p, w.T)
+    p = w.p * (1.0 + 0.10 * np.exp(-(w.t - w.t[0]) / 150.0))
+    warm = model.evaluate(w.Fz, w.kappa, w.alpha, w.gamma, w.Vx, p, w.T)
+    forces = {
+        ch: getattr(w, ch) + getattr(warm, ch) - getattr(clean, ch) for ch in ("Fx", "Fy", "Mz")
+    }
+    diag = diagnose([dataclasses.replace(w, p=None, **forces)], model, seed=0)
+    first = diag.effects[0]
+    assert first.name == "pressure", diag.details["log"]
+    assert first.parameters.get("gas_T0_K", 0.0) > 5.0, first.parameters
+
+
 def test_friction_step_is_named_drift_and_located(model):
     """A belt friction step: drift, in the step form, at the rig's time; model error gone."""
     wheels, truth = _session(model, {"mu_step": {"ratio": 0.93}})

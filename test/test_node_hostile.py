@@ -552,12 +552,14 @@ class Inputs:
     def settle(self, model: TireModel, Fz: float, p: float | None, T: float | None, Vx: float,
                limits: bool = True) -> None:  # fmt: skip
         """Send the inputs (p, T None: not sent) and wait until a probe slip is computed with
-        all of them (None: the nominal value)."""
-        self.send(Fz=Fz, p=p, T=T, Vx=Vx)
+        all of them (None: the nominal value). Each probe sends the inputs again before it:
+        one that reached a reader matched on our side only, or a subscription the node was
+        making anew for a best-effort publisher of an earlier test, is lost, not late."""
         Fz_used = min(Fz, model.params["FZMAX"]) if limits else Fz
         want = model.evaluate(Fz_used, 0.01, 0.0, 0.0, Vx, p, T, limits=limits)
 
         def applied() -> bool:  # a probe whose answer is not back in 5 s: send another
+            self.send(Fz=Fz, p=p, T=T, Vx=Vx)
             try:
                 row = self.rows(self.slips([(0.01, 0.0, 0.0)]), timeout=5.0)[0]
             except TimeoutError:

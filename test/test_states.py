@@ -30,10 +30,11 @@ FULL = WheelEffects(
     thermal_slow_start_K=6.0,
     stiffness_per_K=-0.01,
     gas=Node(60.0, 1e-3),
+    gas_start_K=3.0,
     offsets={"Fy": (12.0, 150.0), "Mz": (-1.5, 0.0)},
     alpha_shift_rad=0.002,
     speed_table=((-2.0, 0.0, 1.0), (0.8, 1.0, 0.9)),
-    sidewall=Sidewall(1.5, 0.1, 2.0, 0.4, 0.03),
+    sidewall=Sidewall(1.5, 0.1, 2.0, 0.4, 0.03, 0.05),
 )
 
 
@@ -49,6 +50,7 @@ def test_nodes_step_as_the_diagnosis_integrates_them():
         thermal_slow=Node(90.0, 2e-3),
         thermal_slow_start_K=4.0,
         gas=Node(40.0, 5e-4),
+        gas_start_K=7.0,  # pre-warmed
     )
     st = EffectState(fx)
     got = {k: [] for k in ("thermal", "thermal_slow", "gas")}
@@ -59,7 +61,7 @@ def test_nodes_step_as_the_diagnosis_integrates_them():
         st.outputs((Pi, 0.0, 5000.0, 0.0, 0.0, 0.0), 1.0, 5000.0, 0.1, 0.0, 10.0, 5000.0)
     for k in got:  # |Fx V kappa| = P with V kappa = 1
         node = getattr(fx, k)
-        y0 = fx.thermal_slow_start_K if k == "thermal_slow" else 0.0
+        y0 = {"thermal_slow": fx.thermal_slow_start_K, "gas": fx.gas_start_K}.get(k, 0.0)
         want = first_order(node.gain_per_W * P, t, node.tau_s, y0)
         np.testing.assert_allclose(got[k], want, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(  # the diagnosis' node from rest is the same integration
@@ -162,6 +164,10 @@ def test_effects_file_round_trip(tmp_path):
     assert back.for_wheel("/car/fl") == FULL  # a one-wheel (rig) file serves every wheel
     two = Effects({"/a": FULL, "/b": WheelEffects()})
     assert two.for_wheel("/c") is None
+    doc = json.loads(fx.to_json())  # version 3: the gas node started at ambient
+    del doc["wheels"]["/rig/wheel"]["gas"]["start_K"]
+    doc["version"] = 3
+    assert Effects.from_dict(doc).wheels["/rig/wheel"].gas_start_K == 0.0
 
 
 def test_sidewall_loss_saturates_at_its_depth_and_older_files_read_as_fitted(tmp_path):

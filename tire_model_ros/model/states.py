@@ -44,10 +44,11 @@ if TYPE_CHECKING:
     from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
-VERSION = 4  # 4: sidewall contact at a slip angle that falls with the deflection (a reader of
-# 3 would drop alpha_c_per_rho)
+VERSION = 4  # 4: sidewall contact at a slip angle that falls with the deflection, a gas node's
+# pre-warmed start (a reader of 3 would drop alpha_c_per_rho and gas.start_K)
 READS = (1, 2, 3, 4)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth and
-# gate_width: the linear loss behind a 5 % gate) and 3 (its slip angle fixed) read as subsets
+# gate_width: the linear loss behind a 5 % gate) and 3 (its slip angle fixed, the gas starting
+# at ambient) read as subsets
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 NODES = ("thermal", "thermal_slow", "gas")
@@ -86,6 +87,7 @@ class WheelEffects:
     thermal_slow_start_K: float = 0.0  # the carcass node's state at the start (pre-warmed)
     stiffness_per_K: float = 0.0  # slip stiffness scales by 1 + this * carcass rise [1/K]
     gas: Node | None = None  # gas temperature [K above T_amb_C] -> gas law -> the p input
+    gas_start_K: float = 0.0  # the gas node's state at the start (pre-warmed)
     offsets: dict[str, tuple[float, float]] = field(default_factory=dict)  # ch: (N, N at FNOMIN)
     alpha_shift_rad: float = 0.0  # ply-steer as a slip-angle shift, added to alpha
     T_lag_s: float = 0.0  # a measured temperature is lagged by this first-order node [s]
@@ -101,6 +103,8 @@ class WheelEffects:
         if self.thermal_slow is not None:
             d["thermal_slow"]["start_K"] = self.thermal_slow_start_K
             d["thermal_slow"]["stiffness_per_K"] = self.stiffness_per_K
+        if self.gas is not None:
+            d["gas"]["start_K"] = self.gas_start_K
         if self.offsets:
             d["offsets"] = {ch: {"N": a, "N_at_FNOMIN": b} for ch, (a, b) in self.offsets.items()}
         if self.alpha_shift_rad:
@@ -249,6 +253,12 @@ def _wheel(d: object, where: str) -> WheelEffects:
     nodes = {k: _node(d[k], f"{where}.{k}") for k in NODES if k in d}
     slow = d.get("thermal_slow")
     start = _number(slow, "start_K", f"{where}.thermal_slow") if slow is not None else 0.0
+    gas = d.get("gas")  # files before version 4: a gas node starting at ambient
+    gas_start = (
+        _number(gas, "start_K", f"{where}.gas", 0.0)
+        if isinstance(gas, Mapping) and "start_K" in gas
+        else 0.0
+    )
     stiff = 0.0
     if isinstance(slow, Mapping) and "stiffness_per_K" in slow:  # version 2 files without it read
         stiff = _number(slow, "stiffness_per_K", f"{where}.thermal_slow")
@@ -259,6 +269,7 @@ def _wheel(d: object, where: str) -> WheelEffects:
         thermal_slow_start_K=start,
         stiffness_per_K=stiff,
         gas=nodes.get("gas"),
+        gas_start_K=gas_start,
         offsets=_offsets(d.get("offsets", {}), f"{where}.offsets"),
         alpha_shift_rad=_number(d, "alpha_shift_rad", where) if "alpha_shift_rad" in d else 0.0,
         T_lag_s=_number(d, "T_lag_s", where, 0.0) if "T_lag_s" in d else 0.0,
@@ -326,7 +337,11 @@ class EffectState:
     def reset(self) -> None:
         self.t_last: float | None = None
         self.P_last = 0.0  # frictional power held over the step [W]
-        self.y = {"thermal": 0.0, "thermal_slow": self.fx.thermal_slow_start_K, "gas": 0.0}
+        self.y = {
+            "thermal": 0.0,
+            "thermal_slow": self.fx.thermal_slow_start_K,
+            "gas": self.fx.gas_start_K,
+        }
         self.T_seen: float | None = None  # the lagged measured temperature (T_lag_s)
         self.T_last: float | None = None  # the measured temperature held over the step
         self._rho = 1.0  # relative deflection of the current sample

@@ -40,6 +40,9 @@ def _terms(ctx: Context) -> list[str]:
 class SealedGas(EffectModel):
     """Concealed: a gas node heated by frictional power, the gas law, the file's terms.
 
+    The node may start pre-warmed (``gas_T0_K`` above ambient: a tyre brought warm to the rig
+    or the track), its pressure then falling back as the gas cools while the power heats it.
+
     Where the tread temperature is recorded, it drives the gas node instead of the power (a
     recorded channel is a thermometer: the gas follows the tread with a lag, heating less).
     ``mode`` "physical" is the model; "memoryless", "reversed" (the drive played backwards:
@@ -67,7 +70,11 @@ class SealedGas(EffectModel):
             else Param("gain_gas_K_per_kW", 2.0, 0.0, 300.0, 2.0)
         )
         params = {
-            "physical": [Param("tau_gas_s", 120.0, 20.0, 1800.0, 60.0), gain],
+            "physical": [
+                Param("tau_gas_s", 120.0, 20.0, 1800.0, 60.0),
+                Param("gas_T0_K", 0.0, 0.0, 60.0, 10.0),  # a pre-warmed start (0: at ambient)
+                gain,
+            ],
             "memoryless": [gain],
             "trend": [Param("rise_per_session", 0.0, -0.5, 0.5, 0.02)],
         }
@@ -100,7 +107,7 @@ class SealedGas(EffectModel):
             return ctx.p_nom * (1.0 + float(x[0]) * w.t / ctx.t_end)
         u = self.drive(x, ctx)
         u = u[::-1] if self.mode == "reversed" else u
-        rise = u if self.mode == "memoryless" else first_order(u, w.t, float(x[0]))
+        rise = u if self.mode == "memoryless" else first_order(u, w.t, float(x[0]), float(x[1]))
         return np.asarray(gas_pressure_Pa(ctx.p_nom, rise, ctx.T_amb), dtype=np.float64)
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
@@ -112,7 +119,8 @@ class SealedGas(EffectModel):
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         if self.by_T:
             return None  # driven by a recorded channel the node does not see as a gas drive
-        return {"T_amb_C": ctx.T_amb, "gas": Node(float(x[0]), float(x[1]) * 1e-3)}
+        tau, start, gain = (float(v) for v in x)
+        return {"T_amb_C": ctx.T_amb, "gas": Node(tau, gain * 1e-3), "gas_start_K": start}
 
 
 class PressureTrend(EffectModel):
