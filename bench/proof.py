@@ -154,16 +154,17 @@ def run_one(gen: str, case: str, seed: int, tmp: Path, out: Path) -> Outcome:
         hidden.mkdir()
         for part in ("truth.json", "twin"):  # out of the diagnosis' sight
             os.replace(work / part, hidden / part)
-        tool = str(Path(sys.executable).with_name("tire-model"))
-        diag_json, ref_json = out / f"{name}.diagnosis.json", out / f"{name}.reference.json"
-        proc = _run([tool, "diagnose", str(work / "recording"), "--tir", str(work / "model.tir"),
-                     "--json", str(diag_json), "--reference", str(hidden / "twin"),
-                     "--reference-json", str(ref_json)], DIAGNOSE_TIMEOUT_S, log)  # fmt: skip
+        # the truth first: a diagnosis that fails counts against its effects, not as a null
         truth = json.loads((hidden / "truth.json").read_text())
         o.truth = [e["name"] for e in truth.get("effects", [])]
         o.concealed = [e["name"] for e in truth.get("effects", []) if e.get("concealed")]
         var = float(truth.get("noise", {}).get("force_noise_variance_N2") or math.nan)
         o.sizes = [float(e.get("ms_N2", math.nan)) / var for e in truth.get("effects", [])]
+        tool = str(Path(sys.executable).with_name("tire-model"))
+        diag_json, ref_json = out / f"{name}.diagnosis.json", out / f"{name}.reference.json"
+        proc = _run([tool, "diagnose", str(work / "recording"), "--tir", str(work / "model.tir"),
+                     "--json", str(diag_json), "--reference", str(hidden / "twin"),
+                     "--reference-json", str(ref_json)], DIAGNOSE_TIMEOUT_S, log)  # fmt: skip
         doc, ref = json.loads(diag_json.read_text()), json.loads(ref_json.read_text())
         o.named = [e["name"] for e in doc["effects"]]
         o.before, o.after = (

@@ -672,6 +672,25 @@ def test_a_near_tie_goes_to_the_richer_model_only_when_most_sweeps_prefer_it():
     assert _ranked([on_most, simple], library)[0] is on_most
 
 
+def test_a_tyre_effect_shares_the_union_of_what_its_wheels_propose():
+    """A car wheel that sweeps no slip ratio proposes no Fx camber coefficient (PDX3), the
+    others do; the tyre's one parameter set is the union, so every wheel carries PDX3 (it
+    acts on that wheel's Fx too). Zipping the wheels' lists crashed the diagnosis of a car
+    (car sidewall seed 18: 'zip() argument 2 is shorter than argument 1')."""
+    from tire_model_ros.diagnosis.effects.base import EffectModel, Param, shared
+
+    class Coefs(EffectModel):
+        word, label, tyre = "camber", "coefficients", True
+
+        def __init__(self, names: str, lo: float) -> None:
+            super().__init__([Param(k, 0.0, lo, 1.0, 0.1) for k in names])
+
+    full, lateral = Coefs("abx", -1.0), Coefs("ab", -2.0)
+    shared([full, lateral, Coefs("abx", -1.0)])
+    assert full.pnames == lateral.pnames == ["a", "b", "x"]
+    assert [p.lo for p in lateral.params] == [-2.0, -2.0, -1.0]  # x: only the wheels with it
+
+
 def test_sidewall_contact_acts_where_its_fitted_gate_opens_and_has_an_ungated_control(model):
     """Sidewall contact's region is the fitted model's own (past the threshold deflection,
     beyond the contact slip angle), not a fixed quantile of the session; the corner is the

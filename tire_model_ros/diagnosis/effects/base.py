@@ -152,13 +152,19 @@ class EffectModel:
 
 
 def shared(models: Sequence[EffectModel]) -> None:
-    """Give the wheels' models of one tyre effect one parameter space: each parameter's
-    bounds span every wheel's, its start is their median, the alternative starts all of
-    theirs and each wheel's own start (each wheel proposes from its own operating range)."""
+    """Give the wheels' models of one tyre effect one parameter space: the union of their
+    parameters (a wheel that sweeps no slip ratio proposes no Fx coefficient, yet the tyre's
+    value acts on it too), each one's bounds spanning every wheel's that has it, its start
+    their median; the alternative starts all of theirs and each wheel's own start (each wheel
+    proposes from its own operating range)."""
     if len(models) < 2:
         return
+    by_name: dict[str, list[Param]] = {}
+    for m in models:
+        for p in m.params:
+            by_name.setdefault(p.name, []).append(p)
     params = []
-    for ps in zip(*(m.params for m in models), strict=True):
+    for ps in by_name.values():
         lo, hi = min(p.lo for p in ps), max(p.hi for p in ps)
         x0 = float(np.clip(np.median([p.x0 for p in ps]), lo, hi))
         params.append(replace(ps[0], x0=x0, lo=lo, hi=hi, scale=max(p.scale for p in ps)))
