@@ -245,6 +245,35 @@ def test_a_pre_warmed_sealed_tyre_cooling_back_is_named_pressure(model):
     assert first.parameters.get("gas_T0_K", 0.0) > 5.0, first.parameters
 
 
+def test_a_carcass_brought_hot_to_the_rig_is_recovered_with_its_warm_start(model):
+    """A tyre brought to the rig hot (a blanket, a previous run) starts its carcass far above
+    ambient and cools while the tread heats: forces made by the hidden thermal model itself
+    with the carcass 75 K up at the start (grip TT3 -0.15, TT4 -0.03 on the convention's
+    scale), with noise; the fit from the effect's own starts recovers the start and the
+    window (with a 60 K bound it stopped at the bound, 110 times the noise's cost)."""
+    from tire_model_ros.diagnosis.effects.thermal import HiddenThermal
+    from tire_model_ros.diagnosis.fitting import fit
+    from tire_model_ros.diagnosis.predict import predict
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"noise": True})
+    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
+    hidden = HiddenThermal(ctx)
+    truth = dict(zip(hidden.pnames, hidden.x0, strict=True))
+    truth.update(tau_fast_s=3.0, tau_slow_s=200.0, slow_share=1.0, T0_K=75.0, TT3=-0.15, TT4=-0.03)
+    x = np.array([truth[k] for k in hidden.pnames])
+    rows = np.arange(len(ctx.wheel.t))
+    rng = np.random.default_rng(1)
+    for ch, F in predict([hidden], x, ctx, rows).items():
+        if ch in ctx.channels:
+            ctx.wheel.meas[ch][:] = F + rng.normal(0.0, ctx.sigma[ch], len(rows))
+    f = fit([hidden], ctx, rows)
+    got = dict(zip(hidden.pnames, f.x, strict=True))
+    assert got["T0_K"] == pytest.approx(75.0, abs=3.0), got
+    assert got["TT3"] == pytest.approx(-0.15, abs=0.02), got
+    assert 2.0 * f.cost / f.m < 2.0  # the noise's own cost per residual is about 1
+
+
 def test_friction_step_is_named_drift_and_located(model):
     """A belt friction step: drift, in the step form, at the rig's time; model error gone."""
     wheels, truth = _session(model, {"mu_step": {"ratio": 0.93}})

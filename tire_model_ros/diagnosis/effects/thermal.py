@@ -115,7 +115,7 @@ class HiddenThermal(_TTModel):
             Param("tau_fast_s", 3.0, *TAU_FAST_S, 3.0),
             Param("tau_slow_s", 150.0, *TAU_SLOW_S, 80.0),
             Param("slow_share", 1.0, 0.0, 20.0, 0.5),
-            Param("T0_K", 0.0, 0.0, 60.0, 10.0),  # a pre-warmed start (0: at ambient)
+            Param("T0_K", 0.0, 0.0, 90.0, 10.0),  # a pre-warmed start (0: at ambient)
         ]
         head = nodes if mode in ("physical", "scrambled", "reversed") else []
         stiff = [Param("stiffness_per_K", 0.0, -STIFFNESS_PER_K, 0.0, 0.002)]
@@ -123,6 +123,7 @@ class HiddenThermal(_TTModel):
             {"tau_fast_s": 1.0},
             {"tau_fast_s": 10.0},
             {"tau_slow_s": 60.0, "slow_share": 2.0},
+            {"T0_K": 30.0},  # a tyre brought warm: it cools before it heats
         ]
         super().__init__([*head, *stiff, *_tt_params(ctx, False)], starts if head else [])
 
