@@ -263,7 +263,8 @@ def score(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) ->
 
 
 def merge(scores: Sequence[Score]) -> Score:
-    """One score of several disjoint held-out sets."""
+    """One score of several disjoint held-out sets. A block held out in parts (a rare sweep
+    seen in one block only: its way out in one fold, its way back in the other) sums them."""
     out = Score(0.0, 0, {}, {}, {})
     for sc in scores:
         out.total += sc.total
@@ -271,7 +272,8 @@ def merge(scores: Sequence[Score]) -> Score:
         for ch, v in sc.sse.items():
             out.sse[ch] = out.sse.get(ch, 0.0) + v
             out.count[ch] = out.count.get(ch, 0) + sc.count[ch]
-        out.per_block.update(sc.per_block)
+        for k, v in sc.per_block.items():
+            out.per_block[k] = out.per_block.get(k, 0.0) + v
     return out
 
 
