@@ -505,10 +505,11 @@ def _changed(t: Joint, other: Joint, prefixes: Sequence[str]) -> float:
 def _backward(
     cur: Joint, base: Joint, log: list[str], library: dict[Key, dict[str, EffectModel]]
 ) -> tuple[Joint, dict[Key, float], dict[Key, dict[str, float]]]:
-    """Drop, one at a time, the effect the others make most redundant (of those whose removal
-    is not significant, the one the model loses least without: backward elimination, so an
-    effect accepted early is not dropped for one that only shadows it); credit each what the
-    model loses without it (pooled over the wheels, and per wheel)."""
+    """Drop, one at a time, the effect the others make most redundant: the one the model
+    loses least without, while that loss is not significant (backward elimination, so an
+    effect accepted early is not dropped for one that only shadows it, nor an effect the
+    model loses much without, on a few sweeps, while one it loses less without stays);
+    credit each what the model loses without it (pooled over the wheels, and per wheel)."""
     while True:
         explained: dict[Key, float] = {}
         per_wheel: dict[Key, dict[str, float]] = {}
@@ -525,9 +526,9 @@ def _backward(
                 p: _share(wo.wheels[p].score, cur.wheels[p].score, base.wheels[p].score)
                 for p in cur.wheels
             }
-            if not vs.significant and (drop is None or wo.score.rms < drop[1].score.rms):
+            if drop is None or wo.score.rms < drop[1].score.rms:
                 drop = (key, wo, vs)
-        if drop is None:
+        if drop is None or drop[2].significant:
             return cur, explained, per_wheel
         key, wo, vs = drop
         log.append(f"dropped {_name(library, key)}: the others explain it ({vs.text()})")
