@@ -70,7 +70,9 @@ def test_diagnosis_names_sidewall_contact_where_only_it_is_left_out(tyre, sidewa
     if sidewall:
         assert named == ["sidewall_contact"], log
         th = diag.effects[0].parameters["deflection_threshold"]
-        assert 1.8 < th < 2.7, th  # 140 kPa at 120 % load: 1.8; 60 kPa: 2.7 (the gate's form)
+        # 140 kPa at 120 % load: 2.0; 60 kPa: 3.7 (the file's vertical stiffness law, PFZ1
+        # 0.88): the rig's gate (half open at 3.0) lies in that gap, which no condition tells
+        assert 2.0 < th < 3.7, th
     else:
         assert named == ["none"], log
 
@@ -94,7 +96,7 @@ def test_sidewall_found_in_a_coarse_fe_table(tyre, sidewall):
     sw = find_sidewall(tyre, [table])
     assert sw is not None and sw.named == sidewall, sw
     if sidewall:
-        assert 2.2 < sw.params[0] < 2.9 and sw.rms_after < 0.3 * sw.rms_before, sw
+        assert 2.0 < sw.params[0] < 3.7 and sw.rms_after < 0.3 * sw.rms_before, sw
 
 
 # ------------------------------------------------------------------ the node counts

@@ -20,6 +20,8 @@ from tire_model_ros.model.states import (
     Sidewall,
     WheelEffects,
     contact_alpha,
+    deflection_pressure_weight,
+    relative_deflection,
     sidewall_factor,
 )
 
@@ -200,9 +202,38 @@ def test_sidewall_loss_saturates_at_its_depth_and_older_files_read_as_fitted(tmp
     path = tmp_path / "old.effects.json"
     path.write_text(json.dumps(doc))
     side = Effects.read(path).wheels["/w"].sidewall
-    assert side == (1.5, 0.1, 2.0, math.inf, 0.05, 0.0)
+    assert side == (1.5, 0.1, 2.0, math.inf, 0.05, 0.0, None)
     again = json.loads(Effects({"/w": WheelEffects(sidewall=side)}).to_json())
     assert "depth" not in again["wheels"]["/w"]["sidewall"]  # JSON has no inf: left out
+
+
+def test_sidewall_deflection_follows_the_files_vertical_stiffness_law():
+    """The deflection is the load over the MF 6.1 vertical stiffness Cz0 (1 + PFZ1 dpi): the
+    file's PFZ1 is carried in the effects file (version 5) and the node's state uses it; a
+    file without PFZ1, or an effects file before version 5, weighs the pressure by the air's
+    share (a stiffness proportional to the absolute pressure), as it was fitted with."""
+    p_nom, atm = 260e3, 101325.0
+    assert deflection_pressure_weight({"PFZ1": 0.88}) == 0.88
+    assert (
+        deflection_pressure_weight({"PFZ1": 0.0}) is None and deflection_pressure_weight({}) is None
+    )
+    rho = relative_deflection(1.2, 1.0, 140e3, p_nom, 0.88)
+    assert rho == pytest.approx(1.2 / (1.0 + 0.88 * (140e3 - p_nom) / p_nom))
+    air = relative_deflection(1.2, 1.0, 140e3, p_nom, None)
+    assert air == pytest.approx(1.2 / ((140e3 + atm) / (p_nom + atm)))  # the law before 5
+    sw = Sidewall(1.9, 0.05, 3.0, 0.3, 0.01, 0.0, 0.88)
+    doc = json.loads(Effects({"/w": WheelEffects(sidewall=sw)}).to_json())
+    assert doc["wheels"]["/w"]["sidewall"]["deflection_pressure_weight"] == 0.88
+    assert Effects.from_dict(doc).wheels["/w"].sidewall == sw
+    old = json.loads(json.dumps(doc))
+    del old["wheels"]["/w"]["sidewall"]["deflection_pressure_weight"]
+    old["version"] = 4
+    # Between the two laws' deflections at 140 kPa, 120 % load (2.02 and 1.80): the gate
+    # opens with the file's law, stays shut with the air's share.
+    for fx, opened in ((Effects.from_dict(doc), True), (Effects.from_dict(old), False)):
+        state = EffectState(fx.wheels["/w"])
+        state.inputs(0.0, 0.0, 0.2, 10.0, 25.0, 140e3, p_nom, 25.0, 1.2)
+        assert (state._rho > sw.threshold) == opened, state._rho
 
 
 def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_deflected():
@@ -217,7 +248,7 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
     fixed = sidewall_factor(rho, alpha, sw._replace(alpha_c_per_rho=0.0))
     assert np.all(fixed > 1.0 - 1e-6)  # alpha_c fixed: 0.14 rad never reaches it
     doc = json.loads(Effects({"/w": WheelEffects(sidewall=sw)}).to_json())
-    assert doc["version"] == 4 and doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"] == 0.1
+    assert doc["version"] == 5 and doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"] == 0.1
     del doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"]
     doc["version"] = 3
     assert Effects.from_dict(doc).wheels["/w"].sidewall == sw._replace(alpha_c_per_rho=0.0)
@@ -227,7 +258,7 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
     ("mangle", "words"),
     [
         (lambda d: d.update(format="x"), ["format"]),
-        (lambda d: d.update(version=5), ["version"]),
+        (lambda d: d.update(version=6), ["version"]),
         (lambda d: d.update(wheels={}), ["wheels"]),
         (lambda d: d["wheels"]["/w"]["thermal"].update(tau_s=-1.0), ["wheels./w.thermal.tau_s"]),
         (lambda d: d["wheels"]["/w"]["thermal_slow"].pop("start_K"), ["thermal_slow.start_K"]),

@@ -22,7 +22,12 @@ import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from tire_model_ros.model import TireModel
-from tire_model_ros.model.states import Sidewall, relative_deflection, sidewall_factor
+from tire_model_ros.model.states import (
+    Sidewall,
+    deflection_pressure_weight,
+    relative_deflection,
+    sidewall_factor,
+)
 from tire_model_ros.recording.series import WheelSeries
 
 from .core import evaluate_on, nominal_inputs, stack_inputs
@@ -60,6 +65,7 @@ class SidewallFit:
     rms_after: float
     sigma: float
     named: bool
+    pressure_weight: float | None  # of the deflection (the model's vertical stiffness law)
 
     @property
     def word(self) -> str:
@@ -68,7 +74,7 @@ class SidewallFit:
     def corner(self, s: WheelSeries, nominal_p: float, FNOMIN: float) -> Bools:
         """Samples of ``s`` in the corner: the gate half open or more and past alpha_c."""
         th, a_c, _ = self.params
-        rho = deflection(s, nominal_p, FNOMIN)
+        rho = deflection(s, nominal_p, FNOMIN, self.pressure_weight)
         out: Bools = (rho > th) & (np.abs(s.alpha) > a_c)
         return out
 
@@ -87,10 +93,12 @@ class SidewallFit:
         }
 
 
-def deflection(s: WheelSeries, nominal_p: float, FNOMIN: float) -> F64:
-    """Relative deflection of every sample (the nominal pressure where none is recorded)."""
+def deflection(s: WheelSeries, nominal_p: float, FNOMIN: float, weight: float | None) -> F64:
+    """Relative deflection of every sample (the nominal pressure where none is recorded;
+    ``weight`` as :func:`~tire_model_ros.model.states.relative_deflection`'s)."""
     p = np.full(len(s), nominal_p) if s.p is None else s.p
-    out: F64 = np.asarray(relative_deflection(s.Fz, FNOMIN, p, nominal_p), dtype=np.float64)
+    rho = relative_deflection(s.Fz, FNOMIN, p, nominal_p, weight)
+    out: F64 = np.asarray(rho, dtype=np.float64)
     return out
 
 
@@ -110,7 +118,8 @@ def find_sidewall(model: TireModel, sims: Sequence[WheelSeries]) -> SidewallFit 
     inputs, measured, valid = stack_inputs(model, lat, ("Fy",))
     Fy = measured["Fy"]
     ok = valid & np.isfinite(Fy)
-    rho = np.concatenate([deflection(s, nominal_p, FNOMIN) for s in lat])[ok]
+    k = deflection_pressure_weight(P)
+    rho = np.concatenate([deflection(s, nominal_p, FNOMIN, k) for s in lat])[ok]
     alpha = np.concatenate([s.alpha for s in lat])[ok]
     sub = {k: None if v is None else v[ok] for k, v in inputs.items()}
     pred = np.asarray(evaluate_on(model, sub).Fy, dtype=np.float64)
@@ -132,9 +141,9 @@ def find_sidewall(model: TireModel, sims: Sequence[WheelSeries]) -> SidewallFit 
     corner = (rho > params[0]) & (np.abs(alpha) > params[1])
     n = int(corner.sum())
     if n < MIN_CORNER_SAMPLES:
-        return SidewallFit(params, n, 0.0, 0.0, sigma, False)
+        return SidewallFit(params, n, 0.0, 0.0, sigma, False, k)
     before = float(np.sqrt(np.mean((pred - y)[corner] ** 2)))
     after = float(np.sqrt(np.mean((resid(best.x) * sigma)[corner] ** 2)))
     floor = max(MIN_MISMATCH_SIGMAS * sigma, MIN_MISMATCH_SHARE * float(np.max(np.abs(y))))
     named = before > floor and after < (1.0 - MIN_GAIN) * before
-    return SidewallFit(params, n, before, after, sigma, named)
+    return SidewallFit(params, n, before, after, sigma, named, k)

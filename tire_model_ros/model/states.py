@@ -44,11 +44,12 @@ if TYPE_CHECKING:
     from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
-VERSION = 4  # 4: sidewall contact at a slip angle that falls with the deflection, a gas node's
-# pre-warmed start (a reader of 3 would drop alpha_c_per_rho and gas.start_K)
-READS = (1, 2, 3, 4)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth and
-# gate_width: the linear loss behind a 5 % gate) and 3 (its slip angle fixed, the gas starting
-# at ambient) read as subsets
+VERSION = 5  # 5: sidewall deflection with the tyre file's vertical stiffness law (a reader of
+# 4 would drop deflection_pressure_weight); 4: sidewall contact at a slip angle that falls
+# with the deflection, a gas node's pre-warmed start
+READS = (1, 2, 3, 4, 5)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth and
+# gate_width: the linear loss behind a 5 % gate), 3 (its slip angle fixed, the gas starting
+# at ambient) and 4 (the deflection's pressure weight the air's share) read as subsets
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 NODES = ("thermal", "thermal_slow", "gas")
@@ -75,6 +76,8 @@ class Sidewall(NamedTuple):
     depth: float = math.inf  # the share of Fy the loss saturates at (inf: linear, unbounded)
     gate_width: float = 0.05  # the gate's logistic width, a share of the threshold
     alpha_c_per_rho: float = 0.0  # alpha_c falls by this [rad] per unit of rho past threshold
+    pressure_weight: float | None = None  # k of the deflection's pressure law (None: the air's
+    # share, as files before version 5 were fitted with; :func:`relative_deflection`)
 
 
 @dataclass(frozen=True)
@@ -124,6 +127,8 @@ class WheelEffects:
             }
             if math.isfinite(sw.depth):
                 d["sidewall"]["depth"] = sw.depth
+            if sw.pressure_weight is not None:
+                d["sidewall"]["deflection_pressure_weight"] = sw.pressure_weight
         return d
 
 
@@ -228,6 +233,8 @@ def _sidewall(d: object, w: str) -> Sidewall:
     optional = {
         k: _number(d, k, w, 0.0) for k in ("depth", "gate_width", "alpha_c_per_rho") if k in d
     }
+    if "deflection_pressure_weight" in d:
+        optional["pressure_weight"] = _number(d, "deflection_pressure_weight", w, 0.0)
     for key, bad, want in (
         ("deflection_threshold", threshold == 0.0, "> 0 (the gate is relative to it)"),
         ("gate_width", optional.get("gate_width") == 0.0, "a share of the threshold > 0"),
@@ -287,12 +294,27 @@ def gas_pressure_Pa(p0_gauge_Pa: Any, rise_K: Any, T0_C: float) -> Any:
     return p0_abs * (T0_C + T_ABS0_C + rise_K) / (T0_C + T_ABS0_C) - STANDARD_ATMOSPHERE_PA
 
 
-def relative_deflection(Fz: Any, FNOMIN: float, p_gauge_Pa: Any, p_nom_Pa: float) -> Any:
-    """Tyre deflection relative to the nominal one, ~ (Fz / FNOMIN) / (p_abs / p_nom_abs): the
-    load a given inflation pressure has to carry (the gate of sidewall contact)."""
-    p_atm = STANDARD_ATMOSPHERE_PA
-    ratio = (np.maximum(p_gauge_Pa, -0.9 * p_atm) + p_atm) / (p_nom_Pa + p_atm)
-    return (Fz / FNOMIN) / np.maximum(ratio, 0.05)
+def relative_deflection(
+    Fz: Any, FNOMIN: float, p_gauge_Pa: Any, p_nom_Pa: float, weight: float | None
+) -> Any:
+    """Tyre deflection relative to the nominal one, (Fz / FNOMIN) / (1 + k dpi): the load
+    over a vertical stiffness that changes with the inflation pressure as the MF 6.1 tyre's
+    does, Cz = Cz0 (1 + PFZ1 dpi) (the gate of sidewall contact). ``weight`` is k
+    (:func:`deflection_pressure_weight`); None: the air's share p_nom / (p_nom + p_atm), a
+    stiffness proportional to the absolute pressure."""
+    k = p_nom_Pa / (p_nom_Pa + STANDARD_ATMOSPHERE_PA) if weight is None else weight
+    dpi = (p_gauge_Pa - p_nom_Pa) / p_nom_Pa
+    return (Fz / FNOMIN) / np.maximum(1.0 + k * dpi, 0.05)
+
+
+def deflection_pressure_weight(params: Mapping[str, float]) -> float | None:
+    """k of :func:`relative_deflection` from a tyre file: its vertical stiffness's pressure
+    term PFZ1 (MF 6.1); None when it has none (0 or absent: an MF 5.2 file), the air's share.
+    A car tyre's PFZ1 (0.8-0.9) weighs the pressure more than its air's share (0.7): with the
+    air's share, a corner trained only at low pressure opened the gate at nominal pressure
+    and high load, where the tyre is stiffer (brush sidewall seed 22)."""
+    k = float(params.get("PFZ1", 0.0) or 0.0)
+    return k if k > 0.0 else None
 
 
 def contact_alpha(rho: Any, sw: Sidewall) -> Any:
@@ -308,7 +330,7 @@ def sidewall_factor(rho: Any, alpha_rad: Any, sw: Sidewall) -> Any:
     threshold, ``gate_width`` of it wide. The loss grows at ``drop`` per rad beyond alpha_c
     and levels off at ``depth`` of Fy (the crown cannot lose more than it carries); ``depth``
     inf is the linear loss drop u."""
-    th, _, drop, depth, width, _ = sw
+    th, drop, depth, width = sw.threshold, sw.drop_per_rad, sw.depth, sw.gate_width
     gate = 1.0 / (1.0 + np.exp(-np.clip((rho - th) / (width * th), -50.0, 50.0)))
     u = np.maximum(np.abs(alpha_rad) - contact_alpha(rho, sw), 0.0)
     loss = drop * u if math.isinf(depth) else depth * -np.expm1(-drop * u / max(depth, 1e-9))
@@ -416,7 +438,9 @@ class EffectState:
             p = p_nom
             if fx.gas is not None:
                 p = gas_pressure_Pa(p_nom, self.y["gas"], fx.T_amb_C)
-        self._rho = float(relative_deflection(Fz_over_FNOMIN, 1.0, p, p_nom))
+        sw = fx.sidewall
+        k = None if sw is None else sw.pressure_weight
+        self._rho = float(relative_deflection(Fz_over_FNOMIN, 1.0, p, p_nom, k))
         alpha = alpha + fx.alpha_shift_rad
         if fx.stiffness_per_K:  # the carcass' stiffness loss: slips scaled before similarity
             k = max(1.0 + fx.stiffness_per_K * self.y["thermal_slow"], 0.3)

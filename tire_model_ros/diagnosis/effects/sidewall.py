@@ -20,6 +20,7 @@ import numpy as np
 from tire_model_ros.model.states import (
     Sidewall,
     contact_alpha,
+    deflection_pressure_weight,
     relative_deflection,
     sidewall_factor,
 )
@@ -56,7 +57,8 @@ def deflection(ctx: Context) -> Array:
     w = ctx.wheel
     p = w.inputs["p"]
     p = np.full(w.n, ctx.p_nom) if p is None else p
-    return np.asarray(relative_deflection(w.x("Fz"), ctx.base["FNOMIN"], p, ctx.p_nom))
+    k = deflection_pressure_weight(ctx.base)
+    return np.asarray(relative_deflection(w.x("Fz"), ctx.base["FNOMIN"], p, ctx.p_nom, k))
 
 
 def _beyond(ctx: Context) -> Mask:
@@ -171,7 +173,9 @@ class SidewallContact(EffectModel):
         out["Fy"] = out["Fy"] * sidewall_factor(deflection(ctx)[rows], alpha, _params(x))
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
-        return {"sidewall": _params(x)}
+        return {
+            "sidewall": _params(x)._replace(pressure_weight=deflection_pressure_weight(ctx.base))
+        }
 
 
 def _telling(ctx: Context, rows: Index, sw: Sidewall) -> Array:
