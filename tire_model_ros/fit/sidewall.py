@@ -118,8 +118,8 @@ def find_sidewall(model: TireModel, sims: Sequence[WheelSeries]) -> SidewallFit 
     inputs, measured, valid = stack_inputs(model, lat, ("Fy",))
     Fy = measured["Fy"]
     ok = valid & np.isfinite(Fy)
-    k = deflection_pressure_weight(P)
-    rho = np.concatenate([deflection(s, nominal_p, FNOMIN, k) for s in lat])[ok]
+    weight = deflection_pressure_weight(P)
+    rho = np.concatenate([deflection(s, nominal_p, FNOMIN, weight) for s in lat])[ok]
     alpha = np.concatenate([s.alpha for s in lat])[ok]
     sub = {k: None if v is None else v[ok] for k, v in inputs.items()}
     pred = np.asarray(evaluate_on(model, sub).Fy, dtype=np.float64)
@@ -141,9 +141,9 @@ def find_sidewall(model: TireModel, sims: Sequence[WheelSeries]) -> SidewallFit 
     corner = (rho > params[0]) & (np.abs(alpha) > params[1])
     n = int(corner.sum())
     if n < MIN_CORNER_SAMPLES:
-        return SidewallFit(params, n, 0.0, 0.0, sigma, False, k)
+        return SidewallFit(params, n, 0.0, 0.0, sigma, False, weight)
     before = float(np.sqrt(np.mean((pred - y)[corner] ** 2)))
     after = float(np.sqrt(np.mean((resid(best.x) * sigma)[corner] ** 2)))
     floor = max(MIN_MISMATCH_SIGMAS * sigma, MIN_MISMATCH_SHARE * float(np.max(np.abs(y))))
     named = before > floor and after < (1.0 - MIN_GAIN) * before
-    return SidewallFit(params, n, before, after, sigma, named, k)
+    return SidewallFit(params, n, before, after, sigma, named, weight)
