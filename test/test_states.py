@@ -270,6 +270,10 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
             lambda d: d["wheels"]["/w"]["sidewall"].update(deflection_threshold=0),
             ["sidewall.deflection_threshold"],
         ),
+        (
+            lambda d: d["wheels"]["/w"]["sidewall"].update(deflection_pressure_weight=-0.5),
+            ["sidewall.deflection_pressure_weight"],
+        ),
         (lambda d: d["wheels"]["/w"].update(alpha_shift_rad="x"), ["alpha_shift_rad"]),
         (lambda d: d["wheels"]["/w"]["offsets"].update(Fq={"N": 1}), ["offsets.Fq"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(ln_Vs=[1, 0, 2]), ["speed_table"]),

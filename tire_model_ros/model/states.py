@@ -438,9 +438,9 @@ class EffectState:
             p = p_nom
             if fx.gas is not None:
                 p = gas_pressure_Pa(p_nom, self.y["gas"], fx.T_amb_C)
-        sw = fx.sidewall
-        k = None if sw is None else sw.pressure_weight
-        self._rho = float(relative_deflection(Fz_over_FNOMIN, 1.0, p, p_nom, k))
+        if fx.sidewall is not None:  # the deflection gates sidewall contact, nothing else
+            w = fx.sidewall.pressure_weight
+            self._rho = float(relative_deflection(Fz_over_FNOMIN, 1.0, p, p_nom, w))
         alpha = alpha + fx.alpha_shift_rad
         if fx.stiffness_per_K:  # the carcass' stiffness loss: slips scaled before similarity
             k = max(1.0 + fx.stiffness_per_K * self.y["thermal_slow"], 0.3)
