@@ -126,6 +126,16 @@ def lowpass(x: Array, t_s: Array, tau_s: float) -> Array:
     return relaxed_slip(x, t_s, np.ones_like(t_s), tau_s)
 
 
+def zero_phase(x: Array, t_s: Array, V_mps: Array, sigma_m: float | Array) -> Array:
+    """:func:`relaxed_slip` run forwards and then backwards in time: it smooths as a lag of
+    that length does, without lagging (the control a lag must beat: a lag fitted to a slip
+    channel's noise is a smoother, and gains as much without its phase)."""
+    y = relaxed_slip(x, t_s, V_mps, sigma_m)
+    sig = np.broadcast_to(np.asarray(sigma_m, dtype=np.float64), y.shape)
+    back = relaxed_slip(y[::-1], t_s[-1] - t_s[::-1], V_mps[::-1], sig[::-1])
+    return back[::-1].copy()
+
+
 def delayed(x: Array, t_s: Array, tau_s: float) -> Array:
     """x(t - tau): the value a channel had tau seconds earlier (held at the first sample)."""
     if tau_s == 0.0:

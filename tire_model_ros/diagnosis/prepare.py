@@ -29,7 +29,8 @@ CHANNELS = DIAGNOSED_CHANNELS  # the measured channels compared; Fx, Fy are sele
 MIN_SAMPLES = 50
 MIN_BLOCKS = 6  # fewer whole sweeps than this: time blocks instead
 TIME_BLOCK_S = (2.0, 15.0)  # a time block spans 4 correlation times of the residual, within
-SMOOTH_WINDOWS = (5, 7, 9, 11, 15, 21, 31, 41)  # candidate input smoother windows [samples]
+SMOOTH_WINDOWS = (7, 9, 11, 15, 21, 31, 41, 61)  # candidate input smoother windows [samples]
+LEFT_OUT = 1  # neighbours on each side a sample is predicted without (noise correlation)
 SMOOTHED = ("kappa", "alpha", "gamma", "Fz", "V")  # recorded inputs smoothed (p, T: not)
 FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows are redundant)
 # Convention for a hidden temperature (PHYSICS.md: the heat gain and the TTX/TTY coefficients
@@ -97,37 +98,43 @@ def _fill(x: Array) -> Array:
     return np.where(ok, x, np.median(x[ok]) if ok.any() else 0.0)
 
 
-def _centre_weight(w: int) -> float:
-    """The centre coefficient of a quadratic Savitzky-Golay window of ``w`` samples (the trace
-    of its smoother matrix per sample)."""
-    m = (w - 1) // 2
-    return 3.0 * (3 * m * m + 3 * m - 1) / ((2 * m - 1) * (2 * m + 1) * (2 * m + 3))
+def _left_out_kernel(w: int) -> Array:
+    """The weights that predict a sample from a quadratic least-squares fit over a window of
+    ``w`` samples without it and its LEFT_OUT neighbours on each side."""
+    j = np.arange(w, dtype=np.float64) - (w - 1) // 2
+    keep = np.abs(j) > LEFT_OUT
+    k = np.zeros(w)
+    k[keep] = np.linalg.pinv(np.vander(j[keep], 3, increasing=True))[0]
+    return k
 
 
 def smooth(x: Array) -> tuple[Array, int]:
     """Zero-phase Savitzky-Golay smoothing of a recorded input, its window chosen from the
-    channel itself by generalised cross-validation; returns the smoothed input and the window
-    [samples].
+    channel itself by cross-validation; returns the smoothed input and the window [samples].
 
     Recorded slip carries sensor noise; through the slip stiffness it is as large as the force
     noise. Left in, any model that low-passes the inputs (relaxation, a delay's filter) would
     gain by denoising rather than by physics. Smoothed too much, a fast input (a car's load
     transfer, a brake's slip) is distorted, and every model inherits that error as a floor. The
-    window that best recovers the true input (GCV, Craven and Wahba 1979: the residual divided
-    by the smoother's lost degrees of freedom) leaves the least of either, per channel: a rig's
-    slow sweeps take long windows, a car's fast load and slip short ones. A quadratic fit keeps
-    ramps exact and the filter shifts nothing in time.
+    window whose quadratic fit best predicts each sample from the others leaves the least of
+    either, per channel: a rig's slow sweeps take long windows, a car's fast load and slip
+    short ones. A DAQ's anti-alias filter correlates the noise of neighbouring samples, which
+    leave-one-out (or generalised) cross-validation reads as signal, keeping the shortest
+    window (Chu and Marron 1991; Opsomer, Wang and Yang 2001): each sample is predicted
+    without its LEFT_OUT neighbours on each side too. A quadratic fit keeps ramps exact and
+    the filter shifts nothing in time.
     """
-    best, best_w = x, 1
-    best_gcv = math.inf
+    best, best_cv = 1, math.inf
     for w in SMOOTH_WINDOWS:
-        if len(x) <= w:
+        if len(x) <= 2 * w:
             break
-        xs = np.asarray(savgol_filter(x, w, 2, mode="interp"), dtype=np.float64)
-        gcv = float(np.mean((x - xs) ** 2)) / (1.0 - _centre_weight(w)) ** 2
-        if gcv < best_gcv:
-            best, best_w, best_gcv = xs, w, gcv
-    return best, best_w
+        r = x[(w - 1) // 2 : len(x) - (w - 1) // 2] - np.convolve(x, _left_out_kernel(w), "valid")
+        cv = float(np.mean(r * r))
+        if cv < best_cv:
+            best, best_cv = w, cv
+    if best == 1:
+        return x.copy(), 1
+    return np.asarray(savgol_filter(x, best, 2, mode="interp"), dtype=np.float64), best
 
 
 def prepare_wheel(s: WheelSeries, model: TireModel, rng: np.random.Generator) -> Wheel:

@@ -137,7 +137,7 @@ def finish(prefix: str, sel: Selection) -> WheelDiagnosis:
     ctx, log = trial.ctx, []  # this wheel's own notes (the selection's log is the recording's)
     w, rows_ab = ctx.wheel, ctx.rows["ab"]
     log.append(
-        "inputs smoothed (zero-phase, window chosen per channel by GCV): "
+        "inputs smoothed (zero-phase, window chosen per channel by cross-validation): "
         + ", ".join(f"{k} {n} samples" for k, n in w.smoothing.items())
     )
     models = trial.models

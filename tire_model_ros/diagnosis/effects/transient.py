@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..dynamics import delayed, lowpass, relaxed_slip
+from ..dynamics import delayed, lowpass, relaxed_slip, zero_phase
 from ..prepare import Context
 from .base import Array, EffectModel, Param
 from .curve import curve_shapes
@@ -26,12 +26,20 @@ class Relaxation(EffectModel):
     The load shape follows the MF 6.1 lengths (sigma = K / C, Pacejka 2012 §7.2.1, the carcass
     stiffness C taken constant); the slip shape is the single-contact-point model's shortening
     as the force curve flattens towards saturation.
+
+    ``zero_phase`` is its control: the same lengths run forwards and backwards, which smooths
+    the slip's noise as much but does not lag it.
     """
 
     word = "relaxation"
-    label = "lag in travelled distance, lengths varying with load and slip"
 
-    def __init__(self, ctx: Context):
+    def __init__(self, ctx: Context, zero_phase: bool = False):
+        self.zero_phase = zero_phase
+        self.label = (
+            "control: the same lengths forwards and backwards (smoothing, no lag)"
+            if zero_phase
+            else "lag in travelled distance, lengths varying with load and slip"
+        )
         params = []
         if ctx.moving["y"]:
             params.append(Param("sigma_alpha_m", 0.4, 0.0, 3.0, 0.2))
@@ -65,10 +73,14 @@ class Relaxation(EffectModel):
                 out[key] = s0 * sh[f"load_{key}"] ** q * (1.0 - c + c * sh[f"slip_{key}"])
         return out
 
+    def controls(self, ctx: Context) -> list[EffectModel]:
+        return [Relaxation(ctx, zero_phase=True)]
+
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         w = ctx.wheel
+        lag = zero_phase if self.zero_phase else relaxed_slip
         for key, sigma in self.lengths(x, ctx).items():
-            inp[key] = relaxed_slip(inp[key], w.t, w.x("V"), sigma)  # type: ignore[arg-type]
+            inp[key] = lag(inp[key], w.t, w.x("V"), sigma)  # type: ignore[arg-type]
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return None  # a simulator's own transient tyre model does this
@@ -82,24 +94,28 @@ class Delay(EffectModel):
     on time, a wheel-force transducer's own Fz is late with its Fx and Fy. Where the load moves
     within a delay's span (a car's load transfer), the two are told apart by a model each;
     elsewhere they predict the same and only the first is tried.
+
+    ``zero_phase`` is its control: a first-order filter run forwards and backwards in time,
+    which smooths the slip's noise without lagging it.
     """
 
     word = "time_delay"
 
-    def __init__(self, ctx: Context, load_with_forces: bool = False):
+    def __init__(self, ctx: Context, load_with_forces: bool = False, zero_phase: bool = False):
         self.load_with_forces = load_with_forces
+        self.zero_phase = zero_phase
+        which = "forces and their load" if load_with_forces else "forces"
         self.label = (
-            "forces and their load recorded late against the slip: pure delay and first-order "
-            "filter"
-            if load_with_forces
-            else "forces recorded late: pure delay and first-order filter"
+            "control: the slip smoothed forwards and backwards in time (no lag)"
+            if zero_phase
+            else f"{which} recorded late against the slip: pure delay and first-order filter"
         )
-        super().__init__(
-            [
-                Param("tau_delay_s", 0.01, 0.0, 0.3, 0.01),
-                Param("tau_filter_s", 0.0, 0.0, 0.1, 0.005),
-            ]
-        )
+        smooth = [Param("tau_smooth_s", 0.01, 0.0, 0.3, 0.01)]
+        lag = [
+            Param("tau_delay_s", 0.01, 0.0, 0.3, 0.01),
+            Param("tau_filter_s", 0.0, 0.0, 0.1, 0.005),
+        ]
+        super().__init__(smooth if zero_phase else lag)
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
@@ -108,12 +124,18 @@ class Delay(EffectModel):
         out: list[EffectModel] = [cls(ctx)]
         return out + ([cls(ctx, True)] if _load_moves(ctx) else [])
 
+    def controls(self, ctx: Context) -> list[EffectModel]:
+        return [Delay(ctx, self.load_with_forces, zero_phase=True)]
+
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         t = ctx.wheel.t
         for key in ("kappa", "alpha", "gamma") + (() if self.load_with_forces else ("Fz",)):
             v = inp[key]
             assert v is not None
-            inp[key] = lowpass(delayed(v, t, float(x[0])), t, float(x[1]))
+            if self.zero_phase:
+                inp[key] = zero_phase(v, t, np.ones_like(t), float(x[0]))
+            else:
+                inp[key] = lowpass(delayed(v, t, float(x[0])), t, float(x[1]))
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return None  # an artefact of the recording, not of the tyre
