@@ -170,6 +170,26 @@ def test_delay_models_the_load_on_the_forces_clock_only_where_the_load_moves(mod
         assert not np.array_equal(inp["alpha"], ctx.wheel.x("alpha"))
 
 
+def test_a_recorded_pressure_refits_the_camber_stiffness_term_where_the_inclination_moves(model):
+    """MF 6.1's PPY5 (pressure on the camber stiffness, 4.E30) is refitted with the other
+    pressure terms where the wheel runs more than one inclination: a programme that ran its
+    low pressure only at 3 degrees let the camber coefficients take the pressure's camber
+    thrust (flattrac pressure_recorded s1, named camber). On one inclination it is not."""
+    from tire_model_ros.diagnosis.effects.pressure import RecordedPressure
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"noise": True})
+    w = wheels[0]
+    low = np.sin(2.0 * np.pi * w.t / 60.0) > 0.0
+    p = np.where(low, 0.8, 1.0) * model.params["NOMPRES"]
+    for gamma, has_ppy5 in ((np.where(low, np.radians(3.0), 0.0), True), (0.0 * w.t, False)):
+        series = dataclasses.replace(w, p=p, gamma=gamma)
+        ctx = make_context(prepare_wheel(series, model, np.random.default_rng(0)), model)
+        (m,) = RecordedPressure.propose(ctx)
+        assert ("PPY5" in m.pnames) == has_ppy5, m.pnames
+        assert "PPY1" in m.pnames
+
+
 def test_combined_slip_can_show_where_a_small_drive_slip_meets_a_slip_angle(model):
     """A car corners under a little drive torque: a slip ratio of a few thousandths, below any
     'both slips swept' threshold, while its Fx is weighted by the slip angle. Combined slip is

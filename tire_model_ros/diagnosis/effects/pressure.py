@@ -19,9 +19,13 @@ from ..dynamics import first_order
 from ..prepare import Context
 from .base import Array, EffectModel, Param, coefficient_params
 from .friction import Trend
+from .static import CAMBER_MIN_RAD
 
-# MF 6.1: Kxk (PPX1, PPX2), mux (PPX3, PPX4), Kya (PPY1, PPY2), muy (PPY3, PPY4)
-PRESSURE_TERMS = ("PPX1", "PPX2", "PPX3", "PPX4", "PPY1", "PPY2", "PPY3", "PPY4")
+# MF 6.1: Kxk (PPX1, PPX2), mux (PPX3, PPX4), Kya (PPY1, PPY2), muy (PPY3, PPY4), and the
+# camber stiffness Kyg0 (PPY5, 4.E30) where the inclination moves: a programme that runs its
+# low pressure at an inclination (flattrac pressure_recorded s1) otherwise lets the camber
+# coefficients take the pressure's camber thrust.
+PRESSURE_TERMS = ("PPX1", "PPX2", "PPX3", "PPX4", "PPY1", "PPY2", "PPY3", "PPY4", "PPY5")
 RECORDED_P_MIN_STD = 0.01  # of the nominal pressure: a channel that moves less tells nothing
 
 
@@ -30,10 +34,12 @@ def _file_has_pressure_terms(ctx: Context) -> bool:
 
 
 def _terms(ctx: Context) -> list[str]:
+    inclined = float(np.ptp(ctx.wheel.x("gamma"))) > CAMBER_MIN_RAD
     return [
         k
         for k in PRESSURE_TERMS
-        if (k[2] == "X" and ctx.informative["x"]) or (k[2] == "Y" and ctx.informative["y"])
+        if (k[2] == "X" and ctx.informative["x"])
+        or (k[2] == "Y" and ctx.informative["y"] and (k != "PPY5" or inclined))
     ]
 
 
