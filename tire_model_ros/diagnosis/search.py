@@ -317,7 +317,7 @@ def _believed(
     t: Joint, cur: Joint, library: dict[Key, dict[str, EffectModel]], log: list[str]
 ) -> bool:
     """The evidence tests of :mod:`.evidence` beyond significance, cheapest first."""
-    for test in (_material, _support, _controls):
+    for test in (_material, _support, _controls, _rivals):
         ok, note = test(t, cur)
         if note:
             t.notes.append(note)
@@ -488,6 +488,24 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
         return True, ""
     verdict = "beats its controls" if tested else "its controls cannot test it (none tested)"
     return True, f"{verdict}: {', '.join(out)} vs {t.score.rms:.3f} (held-out RMS, noise units)"
+
+
+def _rivals(t: Joint, cur: Joint) -> tuple[bool, str]:
+    """No imperfection of the recording predicts held-out sweeps better than the effect, each
+    fitted the same way (the test of a control, turned round: the rival need only win)."""
+    new = _new(t, cur)
+    per_wheel = {n.ctx.wheel.prefix: n.models[-1].rivals(n.ctx) for _, n, _ in new}
+    if not new or not next(iter(per_wheel.values())):
+        return True, ""
+    out = []
+    for i, r in enumerate(next(iter(per_wheel.values()))):
+        rival = add_all(cur, {p: rs[i] for p, rs in per_wheel.items()})
+        rms = rival.score.rms
+        if ev.beats_control(rival.score, t.score):
+            return False, (f"{r.label} predicts held-out sweeps better ({rms:.3f} vs "
+                           f"{t.score.rms:.3f}): the recording's, not missing physics")  # fmt: skip
+        out.append(f"{r.label} {rms:.3f}")
+    return True, f"better than its rivals: {', '.join(out)} vs {t.score.rms:.3f}"
 
 
 def _changed(t: Joint, other: Joint, prefixes: Sequence[str]) -> float:

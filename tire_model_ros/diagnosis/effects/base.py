@@ -13,7 +13,8 @@ more of four places, which the predictor (:mod:`..predict`) composes:
 
 Beyond its equations, an effect model says where in the operating range it can show
 (``support``), which simpler models it must beat to be believed (``controls``: a memoryless
-twin, a time-scrambled driver, a plain time trend), whether it is a constant physics of the
+twin, a time-scrambled driver, a plain time trend), which imperfection of the recording must
+not explain it better (``rivals``: a zero that wanders), whether it is a constant physics of the
 session (``stable_in_time``: fitted on the early and on the late half, it does the same to the
 forces), and
 what a forward model carries of it (``carry``, the node's effects file). The engine never asks
@@ -86,6 +87,12 @@ class EffectModel:
 
     def controls(self, ctx: Context) -> list[EffectModel]:
         """Simpler models of the same mismatch that this one must predict better than."""
+        return []
+
+    def rivals(self, ctx: Context) -> list[EffectModel]:
+        """Imperfections of the recording, not missing physics, that would leave the same
+        mismatch: a rival that predicts held-out sweeps better than this model (as a control
+        that is not beaten) says the mismatch is the recording's."""
         return []
 
     # --- the model ----------------------------------------------------------------------

@@ -15,6 +15,7 @@ from ..prepare import Context
 from .base import Array, EffectModel, Index, Mask, Param, coefficient_params
 
 CAMBER_MIN_RAD = np.radians(0.5)
+WANDER_KNOT_S = 60.0  # a transducer zero wanders within its spec over minutes
 # A usual weighting's B (rBx1, rBy1 about 10, C = 1): where it would change a force by more
 # than the noise is where combined slip can show.
 USUAL_B_COMBINED = 10.0
@@ -22,22 +23,46 @@ COMBINED_MIN_SHARE = 0.05  # of the samples where it can show, for combined slip
 
 
 class Offset(EffectModel):
-    """Constant offsets: a load-cell zero on Fx and Fy, and ply-steer as a slip-angle shift
-    (PHYSICS.md: Fy(alpha = 0) about 3 % of Fz, constant at zero slip, not scaling with
-    inclination)."""
+    """Constant offsets: a load-cell zero on Fx and Fy, ply-steer as a slip-angle shift and
+    conicity as a side force in proportion to the load (PHYSICS.md: Fy(alpha = 0) about 3 %
+    of Fz, constant at zero slip, not scaling with inclination).
+
+    ``wandering`` is its rival: the zeros piecewise linear in time between knots
+    WANDER_KNOT_S apart, a transducer's zero wandering within its spec over minutes (an
+    imperfection of the recording that a null may carry, not missing physics). A constant
+    offset is one such zero; where the wandering one predicts held-out sweeps better, the
+    offset is the zero's wander.
+    """
 
     word = "offset"
-    label = "force offsets and a ply-steer slip-angle shift"
 
-    def __init__(self, ctx: Context):
-        params = [Param(f"offset_{ch}_N", 0.0, -1e5, 1e5, ctx.sigma[ch]) for ch in ctx.channels]
+    def __init__(self, ctx: Context, wandering: bool = False):
+        self.wandering = wandering
+        self.label = (
+            "rival: force zeros wandering in time"
+            if wandering
+            else "force offsets, ply-steer and conicity"
+        )
+        self.knots = np.linspace(0.0, ctx.t_end, max(2, round(ctx.t_end / WANDER_KNOT_S) + 1))
+        n = len(self.knots) if wandering else 1
+        params = [
+            Param(
+                f"offset_{ch}_N{'_' + str(i) if wandering else ''}", 0.0, -1e5, 1e5, ctx.sigma[ch]
+            )
+            for ch in ctx.channels
+            for i in range(n)
+        ]
         if ctx.informative["y"]:
             params.append(Param("ply_steer_rad", 0.0, -0.02, 0.02, 5e-4))
+            params.append(Param("conicity_Fy_N_at_FNOMIN", 0.0, -1e4, 1e4, ctx.sigma["Fy"]))
         super().__init__(params)
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
         return [cls(ctx)]
+
+    def rivals(self, ctx: Context) -> list[EffectModel]:
+        return [Offset(ctx, wandering=True)]
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         v = self.values(x)
@@ -47,14 +72,22 @@ class Offset(EffectModel):
             inp["alpha"] = alpha + v["ply_steer_rad"]
 
     def output(self, x: Array, ctx: Context, out: dict[str, Array], rows: Index) -> None:
-        for k, v in self.values(x).items():
-            if k.startswith("offset_"):
-                ch = k.split("_")[1]
-                out[ch] = out[ch] + v
+        v = self.values(x)
+        for ch in ctx.channels:
+            if not self.wandering:
+                out[ch] = out[ch] + v.get(f"offset_{ch}_N", 0.0)
+                continue
+            zeros = [v[f"offset_{ch}_N_{i}"] for i in range(len(self.knots))]
+            out[ch] = out[ch] + np.interp(ctx.wheel.t[rows], self.knots, zeros)
+        if "conicity_Fy_N_at_FNOMIN" in v:
+            load = ctx.wheel.x("Fz")[rows] / ctx.base["FNOMIN"]
+            out["Fy"] = out["Fy"] + v["conicity_Fy_N_at_FNOMIN"] * load
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         v = self.values(x)
         offsets = {k.split("_")[1]: (val, 0.0) for k, val in v.items() if k.startswith("offset_")}
+        if "conicity_Fy_N_at_FNOMIN" in v:
+            offsets["Fy"] = (offsets.get("Fy", (0.0, 0.0))[0], v["conicity_Fy_N_at_FNOMIN"])
         return {"offsets": offsets, "alpha_shift_rad": v.get("ply_steer_rad", 0.0)}
 
 
