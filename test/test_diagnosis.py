@@ -387,8 +387,8 @@ def test_offset_is_named_constant_and_sized(model):
 
 
 def test_a_zero_that_wanders_within_spec_is_not_named_an_offset(model):
-    """A null whose force zeros wander over minutes (a transducer within its spec, 0.6 of
-    the noise) is no missing physics: a constant offset fitted to it is refused because the
+    """A null whose force zeros wander over minutes (tau 150 s, RMS about 0.9 of the noise the
+    diagnosis estimates) is no missing physics: a constant offset fitted to it is refused because the
     zeros wandering in time predict held-out sweeps better (brush null_5 s23 was named
     `offset`). A side force in proportion to the load (conicity) on a programme that runs its
     loads in turn is an offset, not a wandering zero (flattrac offset s1)."""
