@@ -388,9 +388,9 @@ def test_offset_is_named_constant_and_sized(model):
 
 def test_a_zero_that_wanders_within_spec_is_not_named_an_offset(model):
     """A null whose force zeros wander over minutes (tau 150 s, RMS about 0.9 of the noise the
-    diagnosis estimates) is no missing physics: a constant offset fitted to it is refused because the
-    zeros wandering in time predict held-out sweeps better (brush null_5 s23 was named
-    `offset`). A side force in proportion to the load (conicity) on a programme that runs its
+    diagnosis estimates) is no missing physics: a constant offset fitted to it is refused
+    because the zeros wandering in time predict held-out sweeps better (brush null_5 s23 was
+    named `offset`). A side force in proportion to the load (conicity) on a programme that runs its
     loads in turn is an offset, not a wandering zero (flattrac offset s1)."""
     wheels, _ = _session(model, {"noise": True})
     w = wheels[0]
