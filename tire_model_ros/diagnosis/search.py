@@ -16,7 +16,7 @@ rule here names an effect.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -463,18 +463,13 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
     programme's power rises the same played forwards or backwards) cannot test it: it is
     passed over, and said so.
     """
-    new = _new(t, cur)
-    if not new:
+    prefixes = [n.ctx.wheel.prefix for _, n, _ in _new(t, cur)]
+    if not prefixes:
         return True, ""
-    per_wheel = {n.ctx.wheel.prefix: n.models[-1].controls(n.ctx) for _, n, _ in new}
-    done = max(_changed(t, cur, list(per_wheel)), 1e-12)  # what the effect changes
+    done = max(_changed(t, cur, prefixes), 1e-12)  # what the effect changes
     out, tested = [], 0
-    for i, c in enumerate(next(iter(per_wheel.values()))):
-        twins = {p: cs[i] for p, cs in per_wheel.items()}
-        if c.tyre:
-            shared(list(twins.values()))
-        ctrl = add_all(cur, twins)
-        apart = _changed(t, ctrl, list(per_wheel)) / done
+    for c, ctrl in _alternatives(t, cur, lambda m, ctx: m.controls(ctx)):
+        apart = _changed(t, ctrl, prefixes) / done
         rms = ctrl.score.rms
         if apart < ev.CONTROL_RESOLVES:
             out.append(f"{c.label} {rms:.3f} (the same forces, {apart:.2f} apart: no test)")
@@ -493,19 +488,29 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
 def _rivals(t: Joint, cur: Joint) -> tuple[bool, str]:
     """No imperfection of the recording predicts held-out sweeps better than the effect, each
     fitted the same way (the test of a control, turned round: the rival need only win)."""
-    new = _new(t, cur)
-    per_wheel = {n.ctx.wheel.prefix: n.models[-1].rivals(n.ctx) for _, n, _ in new}
-    if not new or not next(iter(per_wheel.values())):
-        return True, ""
     out = []
-    for i, r in enumerate(next(iter(per_wheel.values()))):
-        rival = add_all(cur, {p: rs[i] for p, rs in per_wheel.items()})
+    for r, rival in _alternatives(t, cur, lambda m, ctx: m.rivals(ctx)):
         rms = rival.score.rms
         if ev.beats_control(rival.score, t.score):
             return False, (f"{r.label} predicts held-out sweeps better ({rms:.3f} vs "
                            f"{t.score.rms:.3f}): the recording's, not missing physics")  # fmt: skip
         out.append(f"{r.label} {rms:.3f}")
-    return True, f"better than its rivals: {', '.join(out)} vs {t.score.rms:.3f}"
+    return True, f"better than its rivals: {', '.join(out)} vs {t.score.rms:.3f}" if out else ""
+
+
+def _alternatives(
+    t: Joint, cur: Joint, of: Callable[[EffectModel, Context], list[EffectModel]]
+) -> Iterator[tuple[EffectModel, Joint]]:
+    """Each alternative model ``of`` the added effect (its controls or its rivals), added to
+    the current model on every wheel the effect was added on, fitted as the effect was (one
+    set for a car's wheels where it is the tyre's); one at a time, as a test that fails stops
+    asking."""
+    per_wheel = {n.ctx.wheel.prefix: of(e, n.ctx) for _, n, e in _new(t, cur)}
+    for i, a in enumerate(next(iter(per_wheel.values()), [])):
+        twins = {p: alts[i] for p, alts in per_wheel.items()}
+        if a.tyre:
+            shared(list(twins.values()))
+        yield a, add_all(cur, twins)
 
 
 def _changed(t: Joint, other: Joint, prefixes: Sequence[str]) -> float:

@@ -19,7 +19,7 @@ from ..dynamics import first_order
 from ..prepare import Context
 from .base import Array, EffectModel, Param, coefficient_params
 from .friction import Trend
-from .static import CAMBER_MIN_RAD
+from .static import inclination_moves
 
 # MF 6.1: Kxk (PPX1, PPX2), mux (PPX3, PPX4), Kya (PPY1, PPY2), muy (PPY3, PPY4), and the
 # camber stiffness Kyg0 (PPY5, 4.E30) where the inclination moves: a programme that runs its
@@ -34,7 +34,7 @@ def _file_has_pressure_terms(ctx: Context) -> bool:
 
 
 def _terms(ctx: Context) -> list[str]:
-    inclined = float(np.ptp(ctx.wheel.x("gamma"))) > CAMBER_MIN_RAD
+    inclined = inclination_moves(ctx)
     return [
         k
         for k in PRESSURE_TERMS

@@ -22,6 +22,11 @@ USUAL_B_COMBINED = 10.0
 COMBINED_MIN_SHARE = 0.05  # of the samples where it can show, for combined slip to be tried
 
 
+def inclination_moves(ctx: Context) -> bool:
+    """Whether the wheel runs more than one inclination: what tells camber terms apart."""
+    return bool(np.ptp(ctx.wheel.x("gamma")) > CAMBER_MIN_RAD)
+
+
 class Offset(EffectModel):
     """Constant offsets: a load-cell zero on Fx and Fy, ply-steer as a slip-angle shift and
     conicity as a side force in proportion to the load (PHYSICS.md: Fy(alpha = 0) about 3 %
@@ -120,8 +125,7 @@ class Camber(_CoefficientRefit):
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
-        g = ctx.wheel.x("gamma")
-        return [cls(ctx)] if float(np.ptp(g)) > CAMBER_MIN_RAD else []
+        return [cls(ctx)] if inclination_moves(ctx) else []
 
     def support(self, ctx: Context, x: Array | None = None) -> Mask | None:
         return np.asarray(np.abs(ctx.wheel.x("gamma")) > CAMBER_MIN_RAD, dtype=np.bool_)
