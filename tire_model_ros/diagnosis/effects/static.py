@@ -106,8 +106,10 @@ class _CoefficientRefit(EffectModel):
 class Camber(_CoefficientRefit):
     """The MF camber coefficients refitted, with their load dependence (Fy: PVY3, PVY4 of
     SVyg, 4.E28; PKY6, PKY7 of Kyg0, 4.E30; PKY3 of Kya, 4.E25; PEY4 of Ey, 4.E24; PDY3 of
-    muy, 4.E23; PHY3 (MF 5.2); Fx: PDX3, 4.E13): the tyre's (one set for the wheels of a
-    car, which run them at their own inclinations and loads)."""
+    muy, 4.E23; PHY3 (MF 5.2); Fx: PDX3, 4.E13) and, where combined slip shows, those of the
+    combined-slip terms (RBX3 of Bxa, 4.E54; RBY4 of Byk, 4.E62; RVY3 of DVyk, 4.E67: a
+    cambered wheel under drive or braking): the tyre's (one set for the wheels of a car,
+    which run them at their own inclinations and loads)."""
 
     word = "camber"
     label = "Magic Formula camber coefficients"
@@ -121,6 +123,9 @@ class Camber(_CoefficientRefit):
         if ctx.informative["x"]:
             names += ["PDX3"]
             scales += [1.0]
+        if combined_shows(ctx):
+            names += ["RBX3", "RBY4", "RVY3"]
+            scales += [100.0, 100.0, 0.1]
         super().__init__(coefficient_params(ctx, names, scales, span=50.0))
 
     @classmethod
@@ -160,12 +165,16 @@ class CombinedSlip(_CoefficientRefit):
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
-        both = _combined_region(ctx)
-        ok = both.mean() > COMBINED_MIN_SHARE and ctx.informative["x"] and ctx.informative["y"]
-        return [cls(ctx)] if ok else []
+        return [cls(ctx)] if combined_shows(ctx) else []
 
     def support(self, ctx: Context, x: Array | None = None) -> Mask | None:
         return _combined_region(ctx)
+
+
+def combined_shows(ctx: Context) -> bool:
+    """Whether both slips are informative and combined slip can show on enough samples."""
+    informative = ctx.informative["x"] and ctx.informative["y"]
+    return bool(informative and _combined_region(ctx).mean() > COMBINED_MIN_SHARE)
 
 
 def _combined_region(ctx: Context) -> Mask:
