@@ -157,6 +157,23 @@ def test_one_absurd_sample_leaves_no_trace_and_the_states_stay_bounded():
         assert st.P_last <= MAX_POWER_W and abs(st.y["thermal"]) <= MAX_RISE_K
 
 
+def test_a_speed_table_relative_to_the_reference_speed_leaves_the_file_there():
+    """A table relative to the file's reference speed V0 scales friction by mu(V |s|) /
+    mu(V0 |s|): 1 at V0 whatever the slip, the table's ratio elsewhere."""
+    table = ((-2.0, 0.0, 1.0), (1.1, 1.0, 0.8))
+    fx = WheelEffects(speed_table=table, speed_reference_mps=11.0)
+    kappa, alpha = 0.05, math.radians(4.0)
+    slip = math.hypot(kappa, math.tan(alpha))
+    for V in (11.0, 20.0, 5.0):
+        st = EffectState(fx)
+        s = st.inputs(0.0, kappa, alpha, V, 60.0, 2.0e5, 2.0e5, 25.0)[4]
+        g = [float(np.interp(math.log(v * slip), table[0], table[1])) for v in (V, 11.0)]
+        assert s == pytest.approx(g[0] / g[1], rel=1e-12)
+    assert s > 1.0  # slower: slides slower, on the rising side of this table
+    doc = Effects({"/w": fx}).to_json()
+    assert Effects.from_dict(json.loads(doc)).wheels["/w"].speed_reference_mps == 11.0
+
+
 def test_effects_file_round_trip(tmp_path):
     fx = Effects({"/rig/wheel": FULL}, "improved.tir", ("drift: friction step at a fitted time",))
     path = tmp_path / "improved.effects.json"

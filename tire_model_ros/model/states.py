@@ -95,6 +95,9 @@ class WheelEffects:
     alpha_shift_rad: float = 0.0  # ply-steer as a slip-angle shift, added to alpha
     T_lag_s: float = 0.0  # a measured temperature is lagged by this first-order node [s]
     speed_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (ln Vs, mu)
+    # > 0: the table is relative to the file's slip curve at this speed [m/s] (friction at
+    # Vs over friction at the same slip's sliding speed there); 0: absolute in Vs
+    speed_reference_mps: float = 0.0
     sidewall: Sidewall | None = None  # Fy scaled by sidewall_factor
 
     def to_dict(self) -> dict[str, Any]:
@@ -116,6 +119,8 @@ class WheelEffects:
             d["T_lag_s"] = self.T_lag_s
         if self.speed_table is not None:
             d["speed_table"] = {"ln_Vs": list(self.speed_table[0]), "mu": list(self.speed_table[1])}
+            if self.speed_reference_mps:
+                d["speed_table"]["reference_V_mps"] = self.speed_reference_mps
         if self.sidewall is not None:
             sw = self.sidewall
             d["sidewall"] = {
@@ -223,6 +228,12 @@ def _table(t: Any, w: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
     return lnV, mu
 
 
+def _reference(t: Any, w: str) -> float:
+    if not isinstance(t, Mapping) or "reference_V_mps" not in t:
+        return 0.0
+    return _number(t, "reference_V_mps", w, 0.0)
+
+
 def _sidewall(d: object, w: str) -> Sidewall:
     if not isinstance(d, Mapping):
         raise EffectsError(
@@ -283,6 +294,7 @@ def _wheel(d: object, where: str) -> WheelEffects:
         speed_table=_table(d["speed_table"], f"{where}.speed_table")
         if "speed_table" in d
         else None,
+        speed_reference_mps=_reference(d.get("speed_table"), f"{where}.speed_table"),
         sidewall=_sidewall(d["sidewall"], f"{where}.sidewall") if "sidewall" in d else None,
     )
 
@@ -447,9 +459,12 @@ class EffectState:
             kappa, alpha = kappa * k, math.atan(math.tan(alpha) * k)
         s = 1.0
         if self._table is not None:
-            Vs = abs(Vx) * math.hypot(kappa, math.tan(alpha))
+            slip = math.hypot(kappa, math.tan(alpha))
             ln_Vs, mu = self._table
-            s *= float(np.interp(math.log(max(Vs, 1e-4)), ln_Vs, mu))
+            s *= float(np.interp(math.log(max(abs(Vx) * slip, 1e-4)), ln_Vs, mu))
+            if fx.speed_reference_mps:
+                ref = math.log(max(fx.speed_reference_mps * slip, 1e-4))
+                s /= float(np.interp(ref, ln_Vs, mu))
         s = max(s, MIN_MU_SCALE)
         if s != 1.0:
             kappa, alpha = kappa / s, math.atan(math.tan(alpha) / s)

@@ -1,9 +1,9 @@
 """Friction that changes with sliding speed or over the session.
 
 ``speed``: friction against sliding speed, the MF form mu / (1 + LMUV Vs / V0) or a table in
-ln Vs (it may rise, peak and fall). ``drift``: a slow change the channels do not explain - wear
-growing with the frictional work (never recovering), a plain trend in time, a step between runs
-(a belt or road change).
+ln Vs (it may rise, peak and fall), absolute or relative to the file's reference speed.
+``drift``: a slow change the channels do not explain - wear growing with the frictional work
+(never recovering), a plain trend in time, a step between runs (a belt or road change).
 """
 
 from __future__ import annotations
@@ -45,13 +45,23 @@ class SpeedTable(EffectModel):
     The knots are log-spaced over the sliding speeds where the tyre slides (5th to 99th
     percentile of Vs above 0.05 m/s); the one nearest the median is held at 1 (the scaling
     factors carry the level).
+
+    ``relative``: the file's slip curve is taken as measured at its reference speed V0
+    (LONGVL), its fall beyond the peak already the friction at the sliding speeds V0 |s| of
+    that speed; at speed V friction is scaled by mu(V |s|) / mu(V0 |s|), so that the file is
+    unchanged at V0 (an absolute law in Vs rescales the file's own curve at every speed).
     """
 
     word = "speed"
-    label = "friction table in ln Vs (piecewise linear)"
     KNOTS = 5
 
-    def __init__(self, ctx: Context):
+    def __init__(self, ctx: Context, relative: bool = False):
+        self.relative = relative
+        self.label = (
+            "friction table in ln Vs relative to the file's reference speed"
+            if relative
+            else "friction table in ln Vs (piecewise linear)"
+        )
         Vs = ctx.wheel.Vs[ctx.wheel.Vs > 0.05]
         lo, hi = np.percentile(Vs, [5, 99]) if len(Vs) > 10 else (0.1, 3.0)
         self.lnV = np.linspace(np.log(lo), np.log(max(hi, 2.0 * lo)), self.KNOTS)
@@ -67,16 +77,22 @@ class SpeedTable(EffectModel):
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
-        return [cls(ctx)]
+        return [cls(ctx), cls(ctx, relative=True)]
 
     def knots(self, x: Array) -> Array:
         return np.insert(np.asarray(x, float), self.ref, 1.0)
 
     def mu_scale(self, x: Array, ctx: Context) -> Array:
-        return np.interp(np.log(np.maximum(ctx.wheel.Vs, 1e-4)), self.lnV, self.knots(x))
+        w, mu = ctx.wheel, self.knots(x)
+        out = np.interp(np.log(np.maximum(w.Vs, 1e-4)), self.lnV, mu)
+        if self.relative:
+            Vs_ref = ctx.V0 * w.Vs / np.maximum(np.abs(w.x("V")), 1e-3)  # V0 |s|
+            out = out / np.interp(np.log(np.maximum(Vs_ref, 1e-4)), self.lnV, mu)
+        return np.asarray(out)
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
-        return {"speed_table": (tuple(map(float, self.lnV)), tuple(map(float, self.knots(x))))}
+        table = (tuple(map(float, self.lnV)), tuple(map(float, self.knots(x))))
+        return {"speed_table": table, "speed_reference_mps": ctx.V0 if self.relative else 0.0}
 
 
 class Wear(EffectModel):
