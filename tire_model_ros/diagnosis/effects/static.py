@@ -106,16 +106,22 @@ class _CoefficientRefit(EffectModel):
 class Camber(_CoefficientRefit):
     """The MF camber coefficients refitted, with their load dependence (Fy: PVY3, PVY4 of
     SVyg, 4.E28; PKY6, PKY7 of Kyg0, 4.E30; PKY3 of Kya, 4.E25; PEY4 of Ey, 4.E24; PDY3 of
-    muy, 4.E23; PHY3 (MF 5.2); Fx: PDX3, 4.E13) and, where combined slip shows, those of the
-    combined-slip terms (RBX3 of Bxa, 4.E54; RBY4 of Byk, 4.E62; RVY3 of DVyk, 4.E67: a
-    cambered wheel under drive or braking): the tyre's (one set for the wheels of a car,
-    which run them at their own inclinations and loads)."""
+    muy, 4.E23; PHY3 (MF 5.2); Fx: PDX3, 4.E13): the tyre's (one set for the wheels of a
+    car, which run them at their own inclinations and loads).
+
+    ``combined``: with those of the combined-slip terms too (RBX3 of Bxa, 4.E54; RBY4 of Byk,
+    4.E62; RVY3 of DVyk, 4.E67: a cambered wheel under drive or braking), where combined slip
+    shows; a second form, as a rig's few combined sweeps at camber cannot hold them.
+    """
 
     word = "camber"
-    label = "Magic Formula camber coefficients"
     tyre = True
 
-    def __init__(self, ctx: Context):
+    def __init__(self, ctx: Context, combined: bool = False):
+        self.combined = combined
+        self.label = "Magic Formula camber coefficients" + (
+            " with their combined-slip terms" if combined else ""
+        )
         names, scales = [], []
         if ctx.informative["y"]:
             names += ["PVY3", "PVY4", "PKY6", "PKY7", "PKY3", "PEY4", "PHY3", "PDY3"]
@@ -123,14 +129,17 @@ class Camber(_CoefficientRefit):
         if ctx.informative["x"]:
             names += ["PDX3"]
             scales += [1.0]
-        if combined_shows(ctx):
+        if combined:
             names += ["RBX3", "RBY4", "RVY3"]
             scales += [100.0, 100.0, 0.1]
         super().__init__(coefficient_params(ctx, names, scales, span=50.0))
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
-        return [cls(ctx)] if inclination_moves(ctx) else []
+        if not inclination_moves(ctx):
+            return []
+        out: list[EffectModel] = [cls(ctx)]
+        return out + ([cls(ctx, combined=True)] if combined_shows(ctx) else [])
 
     def support(self, ctx: Context, x: Array | None = None) -> Mask | None:
         return np.asarray(np.abs(ctx.wheel.x("gamma")) > CAMBER_MIN_RAD, dtype=np.bool_)
