@@ -1103,6 +1103,60 @@ def test_backward_step_keeps_an_effect_the_model_loses_much_without_on_a_few_swe
     assert keys == [("D", ""), ("S", "")] and not log
 
 
+def _swap(
+    monkeypatch: pytest.MonkeyPatch, loses: dict[frozenset[str], list[float]], words: dict[str, str]
+) -> tuple[list[tuple[str, str]], list[str]]:
+    """The swap step on models named by letters of the given words (the first two letters of
+    ``max(loses)`` in): each set of models in scoring the held-out per-sweep errors ``loses``
+    gives it, every swap believed (the evidence tests are tested on their own)."""
+    from tire_model_ros.diagnosis import search
+    from tire_model_ros.diagnosis.effects.base import EffectModel, Param
+
+    def effect(name: str) -> EffectModel:
+        def init(self: EffectModel) -> None:
+            EffectModel.__init__(self, [Param("a", 0, 0, 1, 1)])
+
+        cls = type(name, (EffectModel,), {"word": words[name], "label": "", "__init__": init})
+        return cls()
+
+    models = {k: effect(k) for k in words}
+
+    def joint(names: list[str]) -> search.Joint:
+        left = loses[frozenset(names)]
+        sc = _score(left, sum(left) / 100 / len(left))
+        t = search.Trial(None, [models[k] for k in names], [], sc, [sc, sc])  # type: ignore[arg-type]
+        return search.Joint({"w": t}, [(k, "") for k in names])
+
+    def joint_add(cur: search.Joint, key: search.Key, ms: object, everything: bool = False):  # type: ignore[no-untyped-def]
+        return joint([k for k, _ in cur.keys] + [key[0]])
+
+    monkeypatch.setattr(search, "joint_add", joint_add)
+    monkeypatch.setattr(
+        search, "_without", lambda cur, key: joint([k for k, _ in cur.keys if k != key[0]])
+    )
+    monkeypatch.setattr(search, "_believed", lambda *a: True)
+    library = {(k, ""): {"w": models[k]} for k in words}
+    log: list[str] = []
+    out = search._swap(joint(sorted(max(loses, key=len))), {}, library, log)  # type: ignore[arg-type]
+    return out.keys, log
+
+
+def test_a_model_chosen_before_the_others_gives_way_to_one_of_its_word_that_does_better(
+    monkeypatch,
+):
+    """A friction step (S) was chosen first, before the speed law (V) whose blocks ran in time
+    order; given V, wear (W, the same word) predicts every held-out sweep better: it takes S's
+    place. One that does better on half the sweeps by less than the margin does not."""
+    words = {"S": "drift", "W": "drift", "V": "speed"}
+    loses = {frozenset("SV"): [120.0] * 40, frozenset("V"): [150.0] * 40,
+             frozenset("WV"): [100.0] * 40, frozenset("S"): [200.0] * 40}  # fmt: skip
+    keys, log = _swap(monkeypatch, loses, words)
+    assert sorted(keys) == [("V", ""), ("W", "")] and log[0].startswith("swapped"), log
+    loses[frozenset("WV")] = [119.0, 121.0] * 20
+    keys, log = _swap(monkeypatch, loses, words)
+    assert sorted(keys) == [("S", ""), ("V", "")] and not log, log
+
+
 def test_the_input_smoother_window_follows_each_channels_noise_and_pace():
     """A slow sweep under sensor noise is smoothed over a long window, a fast input with little
     noise over a short one (a fixed 90 ms window distorted a car's load transfer and brake

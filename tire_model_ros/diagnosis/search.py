@@ -530,16 +530,17 @@ def _swap(
     library: dict[Key, dict[str, EffectModel]],
     log: list[str],
 ) -> Joint:
-    """Each chosen effect against the other models of its word, given the effects chosen
-    after it: one that predicts held-out sweeps better (as a control is beaten) and that the
-    evidence tests believe takes its place. A model chosen early was chosen without the
-    others (a friction step stood in for wear until the speed law that runs its blocks in
-    time order was in)."""
+    """Each chosen effect against the other models of its word, given all the others: one
+    that predicts held-out sweeps better (as a control is beaten) and that the evidence tests
+    believe takes its place. A model chosen early was chosen without the effects chosen after
+    it (a friction step stood in for wear until the speed law whose blocks ran in time order
+    was in)."""
     for key in list(cur.keys):
-        word = _word(library, key)
+        others = [k for k in library if k != key and _word(library, k) == _word(library, key)]
+        if not others:
+            continue
         rest = _without(cur, key)
-        alts = [joint_add(rest, k, ms, everything=True) for k, ms in library.items()
-                if k != key and _word(library, k) == word]  # fmt: skip
+        alts = [joint_add(rest, k, library[k], everything=True) for k in others]
         better = [a for a in alts if ev.beats_control(a.score, cur.score)]
         for alt in sorted(better, key=lambda a: a.score.rms):
             if _believed(alt, rest, library, log):
