@@ -265,7 +265,7 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
     fixed = sidewall_factor(rho, alpha, sw._replace(alpha_c_per_rho=0.0))
     assert np.all(fixed > 1.0 - 1e-6)  # alpha_c fixed: 0.14 rad never reaches it
     doc = json.loads(Effects({"/w": WheelEffects(sidewall=sw)}).to_json())
-    assert doc["version"] == 5 and doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"] == 0.1
+    assert doc["version"] == 6 and doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"] == 0.1
     del doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"]
     doc["version"] = 3
     assert Effects.from_dict(doc).wheels["/w"].sidewall == sw._replace(alpha_c_per_rho=0.0)
@@ -275,7 +275,7 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
     ("mangle", "words"),
     [
         (lambda d: d.update(format="x"), ["format"]),
-        (lambda d: d.update(version=6), ["version"]),
+        (lambda d: d.update(version=7), ["version"]),
         (lambda d: d.update(wheels={}), ["wheels"]),
         (lambda d: d["wheels"]["/w"]["thermal"].update(tau_s=-1.0), ["wheels./w.thermal.tau_s"]),
         (lambda d: d["wheels"]["/w"]["thermal_slow"].pop("start_K"), ["thermal_slow.start_K"]),
@@ -295,6 +295,10 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
         (lambda d: d["wheels"]["/w"]["offsets"].update(Fq={"N": 1}), ["offsets.Fq"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(ln_Vs=[1, 0, 2]), ["speed_table"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(mu=[1, -1, 1]), ["speed_table"]),
+        (
+            lambda d: d["wheels"]["/w"]["speed_table"].update(reference_V_mps=-1.0),
+            ["speed_table.reference_V_mps"],
+        ),
         (lambda d: d["wheels"]["/w"].update(T_amb_C="hot"), ["T_amb_C"]),
         (lambda d: d["wheels"]["/w"].update(offsets=[1, 2]), ["wheels./w.offsets"]),
         (lambda d: d.update(not_carried=5), ["not_carried"]),

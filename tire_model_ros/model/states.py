@@ -44,12 +44,14 @@ if TYPE_CHECKING:
     from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
-VERSION = 5  # 5: sidewall deflection with the tyre file's vertical stiffness law (a reader of
-# 4 would drop deflection_pressure_weight); 4: sidewall contact at a slip angle that falls
-# with the deflection, a gas node's pre-warmed start
-READS = (1, 2, 3, 4, 5)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth and
-# gate_width: the linear loss behind a 5 % gate), 3 (its slip angle fixed, the gas starting
-# at ambient) and 4 (the deflection's pressure weight the air's share) read as subsets
+VERSION = 6  # 6: a speed table relative to a reference speed (a reader of 5 would drop
+# reference_V_mps and scale the file's curve at every speed); 5: sidewall deflection with the
+# tyre file's vertical stiffness law (a reader of 4 would drop deflection_pressure_weight);
+# 4: sidewall contact at a slip angle that falls with the deflection, a gas node's start
+READS = (1, 2, 3, 4, 5, 6)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth
+# and gate_width: the linear loss behind a 5 % gate), 3 (its slip angle fixed, the gas starting
+# at ambient), 4 (the deflection's pressure weight the air's share) and 5 (speed tables
+# absolute) read as subsets
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 NODES = ("thermal", "thermal_slow", "gas")

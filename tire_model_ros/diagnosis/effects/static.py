@@ -118,7 +118,6 @@ class Camber(_CoefficientRefit):
     tyre = True
 
     def __init__(self, ctx: Context, combined: bool = False):
-        self.combined = combined
         self.label = "Magic Formula camber coefficients" + (
             " with their combined-slip terms" if combined else ""
         )
