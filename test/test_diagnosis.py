@@ -1157,6 +1157,27 @@ def test_a_model_chosen_before_the_others_gives_way_to_one_of_its_word_that_does
     assert sorted(keys) == [("S", ""), ("V", "")] and not log, log
 
 
+def test_the_final_refit_starts_from_the_folds_fit_that_fits_best_not_their_mean(model):
+    """The two selection folds fitted a friction scale 1 and 1.4 (a non-convex model's two
+    fits can be far apart): their mean, 1.2, fits the training sweeps worse than either; the
+    final refit starts from the better one. A parameter held for the wheels of a car (here
+    the baseline's) keeps the mean, one value for every wheel."""
+    from tire_model_ros.diagnosis.effects.baseline import Scaling
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+    from tire_model_ros.diagnosis.result import _final_start, set_noise
+
+    wheels, _ = _session(model, {"noise": True})
+    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
+    set_noise(ctx)
+    m = Scaling(ctx)
+    xs = [np.ones(m.n), np.full(m.n, 1.4)]
+    rows = ctx.rows["ab"]
+    x = _final_start([m], ctx, rows, xs, np.ones(m.n, bool))
+    assert np.all(x == 1.0)
+    held = np.zeros(m.n, bool)
+    assert np.allclose(_final_start([m], ctx, rows, xs, held), 1.2)
+
+
 def test_the_input_smoother_window_follows_each_channels_noise_and_pace():
     """A slow sweep under sensor noise is smoothed over a long window, a fast input with little
     noise over a short one (a fixed 90 ms window distorted a car's load transfer and brake
