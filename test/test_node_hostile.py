@@ -552,9 +552,10 @@ class Inputs:
     def settle(self, model: TireModel, Fz: float, p: float | None, T: float | None, Vx: float,
                limits: bool = True) -> None:  # fmt: skip
         """Send the inputs (p, T None: not sent) and wait until a probe slip is computed with
-        all of them (None: the nominal value). Each probe sends the inputs again before it:
-        one that reached a reader matched on our side only, or a subscription the node was
-        making anew for a best-effort publisher of an earlier test, is lost, not late."""
+        all of them (None: the nominal value): every output of the probe as the model gives
+        it. Each probe sends the inputs again before it: one that reached a reader matched on
+        our side only, or a subscription the node was making anew for a best-effort publisher
+        of an earlier test, is lost, not late."""
         Fz_used = min(Fz, model.params["FZMAX"]) if limits else Fz
         want = model.evaluate(Fz_used, 0.01, 0.0, 0.0, Vx, p, T, limits=limits)
 
@@ -564,7 +565,10 @@ class Inputs:
                 row = self.rows(self.slips([(0.01, 0.0, 0.0)]), timeout=5.0)[0]
             except TimeoutError:
                 return False
-            return row[2] == Fz_used and row[0] == pytest.approx(float(want.Fx), rel=1e-9)
+            # every output, not Fx alone: Fx at this slip does not depend on Vx, My does (a
+            # speed left by an earlier test passed the probe and failed the rows after it)
+            full = [want.Fx, want.Fy, Fz_used, want.Mx, want.My, want.Mz]
+            return bool(np.allclose(row, np.asarray(full, dtype=float), rtol=1e-9, atol=1e-6))
 
         wait_for(applied, 60, f"the node computing with Fz {Fz}, T {T}", interval=0.05)
 
