@@ -23,7 +23,7 @@ test: venv
 	$(VENV)/bin/ruff check tire_model_ros test bench realities
 	$(VENV)/bin/ruff format --check tire_model_ros test bench realities
 	$(VENV)/bin/mypy
-	$(PY) -m pytest -q test
+	$(PY) -m pytest -q -n 2 --dist loadfile test  # two workers, a test file on one of them
 
 demo: venv
 	$(PY) -m tire_model_ros.demo
