@@ -557,18 +557,18 @@ class Inputs:
         our side only, or a subscription the node was making anew for a best-effort publisher
         of an earlier test, is lost, not late."""
         Fz_used = min(Fz, model.params["FZMAX"]) if limits else Fz
-        want = model.evaluate(Fz_used, 0.01, 0.0, 0.0, Vx, p, T, limits=limits)
+        probe = [(0.01, 0.0, 0.0)]
+        want = expect(model, Fz_used, T, limits, p, Vx, slips=probe)[0]
 
         def applied() -> bool:  # a probe whose answer is not back in 5 s: send another
             self.send(Fz=Fz, p=p, T=T, Vx=Vx)
             try:
-                row = self.rows(self.slips([(0.01, 0.0, 0.0)]), timeout=5.0)[0]
+                row = self.rows(self.slips(probe), timeout=5.0)[0]
             except TimeoutError:
                 return False
             # every output, not Fx alone: Fx at this slip does not depend on Vx, My does (a
             # speed left by an earlier test passed the probe and failed the rows after it)
-            full = [want.Fx, want.Fy, Fz_used, want.Mx, want.My, want.Mz]
-            return bool(np.allclose(row, np.asarray(full, dtype=float), rtol=1e-9, atol=1e-6))
+            return row[2] == Fz_used and bool(np.allclose(row, want, rtol=1e-9, atol=1e-6))
 
         wait_for(applied, 60, f"the node computing with Fz {Fz}, T {T}", interval=0.05)
 
@@ -576,8 +576,9 @@ class Inputs:
 SLIPS = [(0.08, 0.05, 0.01), (-0.12, -0.03, 0.0), (0.02, 0.1, -0.02)]
 
 
-def expect(model, Fz, T, limits, p=2.6e5, Vx=15.0) -> np.ndarray:
-    s = np.array(SLIPS)
+def expect(model, Fz, T, limits, p=2.6e5, Vx=15.0, slips=SLIPS) -> np.ndarray:
+    """The rows (Fx, Fy, Fz, Mx, My, Mz) the node should publish for ``slips``."""
+    s = np.array(slips)
     o = model.evaluate(Fz, s[:, 0], s[:, 1], s[:, 2], Vx, p, T, limits=limits)
     return np.column_stack([o.Fx, o.Fy, np.broadcast_to(Fz, len(s)), o.Mx, o.My, o.Mz])
 
