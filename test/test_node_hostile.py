@@ -787,11 +787,17 @@ def test_slips_held_at_sigterm_are_answered_or_counted(client):
     forces.wait(S)  # answered: the load is arriving
     slip.publish(slip_msg(2 * S))  # its load never comes, and the bound is a minute
 
+    last: list[dict | None] = [None]  # the latest status, named if the wait times out
+
     def pending() -> bool:
         st = status(box, "tire_term: /term")
-        return st is not None and values(st)["pending"] == "1"
+        last[0] = None if st is None else values(st)
+        return last[0] is not None and last[0]["pending"] == "1"
 
-    wait_for(pending, 30, "the slip held")
+    try:
+        wait_for(pending, 30, "the slip held")
+    except TimeoutError as e:
+        raise TimeoutError(f"{e}; last /diagnostics status of /term: {last[0]}") from e
     rc, log = proc.stop()
     assert exited_cleanly(rc, log) and "Traceback" not in log, log
     c = parse_reports(log, NODE)["/term"]
