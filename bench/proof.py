@@ -23,7 +23,8 @@ Scoring (printed per generator, and totals; written as proof.json / proof.md):
 - held-out RMSE (root-sum-square of Fx and Fy) before and after; the floor (the true physics'
   own held-out RMSE on the recording: force noise and input noise); halved where the floor
   allows (floor <= before / 2);
-- time of the diagnosis.
+- time of the diagnosis: wall and CPU of the whole recording, and CPU per wheel (a car's
+  recording holds four 8-minute wheel recordings).
 
 The generator the diagnosis was developed on is marked; targets are judged on the others.
 Targets: >= 90 % strongest first, >= 80 % of true effects named in multi-effect recordings,
@@ -71,6 +72,7 @@ class Outcome:
     floor: float = math.nan
     seconds: float = math.nan  # the diagnose command's own report (wall)
     cpu: float = math.nan  # ... and its CPU time (one core; the machine may be shared)
+    wheels: int = 1  # the wheels diagnosed (a car: 4 recordings of 8 minutes in one)
     wall: float = math.nan  # generate + diagnose
     error: str = ""
 
@@ -167,6 +169,7 @@ def run_one(gen: str, case: str, seed: int, tmp: Path, out: Path) -> Outcome:
                      "--reference-json", str(ref_json)], DIAGNOSE_TIMEOUT_S, log)  # fmt: skip
         doc, ref = json.loads(diag_json.read_text()), json.loads(ref_json.read_text())
         o.named = [e["name"] for e in doc["effects"]]
+        o.wheels = max(len(doc.get("wheels") or {}), 1)
         o.before, o.after = (
             _rss(doc["fit"], "heldout_baseline"),
             _rss(doc["fit"], "heldout_improved"),
@@ -222,6 +225,7 @@ def totals(outs: list[Outcome]) -> dict[str, object]:
     can = [o for o in eff if o.attainable]
     times = [o.seconds for o in outs if math.isfinite(o.seconds)]
     cpus = [o.cpu for o in outs if math.isfinite(o.cpu)]
+    per_wheel = [o.cpu / o.wheels for o in outs if math.isfinite(o.cpu)]
     return {
         "recordings": len(outs),
         "strongest_first": f"{sum(o.first_right for o in eff)}/{len(eff)}",
@@ -238,6 +242,8 @@ def totals(outs: list[Outcome]) -> dict[str, object]:
         "errors": sum(bool(o.error) for o in outs),
         "median_diagnosis_s": statistics.median(times) if times else math.nan,
         "median_diagnosis_cpu_s": statistics.median(cpus) if cpus else math.nan,
+        # per 8-minute 100 Hz wheel recording (a car's four wheels are four of them)
+        "median_diagnosis_cpu_s_per_wheel": statistics.median(per_wheel) if per_wheel else math.nan,
     }
 
 

@@ -19,6 +19,7 @@ from .predict import predict, split_x
 from .prepare import Context
 
 MAX_NFEV = 40
+DIFF_STEP = 1e-4  # relative forward-difference step of the Jacobians
 BAD_RESIDUAL = 1e3  # a non-finite model output counts as this many noise sigmas
 
 
@@ -176,19 +177,40 @@ def fit_shared(
             out.append(np.concatenate([x, th]))
         return out
 
+    def part(k: int, xt: Array) -> Array:
+        ms, ctx, rows, _, _ = parts[k]
+        return residuals(ms, vectors(xt)[k], ctx, rows)
+
+    last: list[tuple[Array, list[Array]]] = []  # the latest point and its residuals per part
+
+    def per_part(xt: Array) -> list[Array]:
+        if not last or not np.array_equal(last[0][0], xt):
+            last[:] = [(xt.copy(), [part(k, xt) for k in range(len(parts))])]
+        return last[0][1]
+
     def fun(xt: Array) -> Array:
-        xs = vectors(xt)
-        return np.concatenate(
-            [
-                residuals(ms, x, ctx, rows)
-                for (ms, ctx, rows, _, _), x in zip(parts, xs, strict=True)
-            ]
-        )
+        return np.concatenate(per_part(xt))
+
+    def jac(xt: Array) -> Array:
+        """Forward differences by blocks: a wheel's own parameters move its residuals only,
+        so each is differenced on its wheel alone (the shared ones on every wheel)."""
+        r0 = per_part(xt)
+        h = _forward_steps(xt, lo, hi)
+        J = np.zeros((sum(len(r) for r in r0), len(xt)))
+        row = 0
+        for k, r in enumerate(r0):
+            for j in [*range(cuts[0]), *range(cuts[k], cuts[k + 1])]:
+                xj = xt.copy()
+                xj[j] += h[j]
+                J[row : row + len(r), j] = (part(k, xj) - r) / h[j]
+            row += len(r)
+        return J
 
     # the starts name the shared parameters; the wheels' own are not named
     names = [p.name for p, f in zip(e.params, free_e, strict=True) if f]
     names += [""] * (len(x0) - len(names))
-    res = _least_squares(fun, x0, np.ones(len(x0), bool), lo, hi, scale, names, e.starts, max_nfev)
+    every = np.ones(len(x0), bool)
+    res = _least_squares(fun, x0, every, lo, hi, scale, names, e.starts, max_nfev, jac)
     fits = []
     seen = [(ctx, rows) for _, ctx, rows, _, _ in parts]
     for (ms, ctx, rows, _, _), x, (_, fh, *_) in zip(parts, vectors(res.x), heads, strict=True):
@@ -201,17 +223,35 @@ def fit_shared(
     return fits
 
 
+def _forward_steps(x: Array, lo: Array, hi: Array) -> Array:
+    """Forward-difference steps as scipy's least squares takes them with ``diff_step``: DIFF_STEP
+    of |x| (sqrt(eps) max(1, |x|) where that is no step), turned back where the step would
+    leave the bounds, else shortened to the farther bound; exactly representable."""
+    sign = np.where(x >= 0, 1.0, -1.0)
+    h = DIFF_STEP * sign * np.abs(x)
+    h = np.where(
+        (x + h) - x == 0, np.sqrt(np.finfo(float).eps) * sign * np.maximum(1.0, np.abs(x)), h
+    )
+    up, down = hi - x, x - lo
+    fits = np.abs(h) <= np.maximum(up, down)
+    h = np.where(((x + h < lo) | (x + h > hi)) & fits, -h, h)
+    h = np.where(fits, h, np.where(up >= down, up, -down))
+    return (x + h) - x
+
+
 def _least_squares(  # type: ignore[no-untyped-def]
     fun, x0: Array, free: Mask, lo: Array, hi: Array, scale: Array, names: list[str],
-    starts: Sequence[dict[str, float]], max_nfev: int,
+    starts: Sequence[dict[str, float]], max_nfev: int, jac=None,
 ):  # fmt: skip
     """Trust-region reflective least squares of the ``free`` entries of ``x0``, from the
-    best of ``x0`` and the alternative ``starts`` (each briefly tried first)."""
+    best of ``x0`` and the alternative ``starts`` (each briefly tried first); ``jac``: the
+    Jacobian's own function (None: forward differences of every column)."""
 
     def solve(x_start: Array, nfev: int):  # type: ignore[no-untyped-def]
         return least_squares(
             fun,
             x_start,
+            jac="2-point" if jac is None else jac,
             bounds=(lo[free], hi[free]),
             x_scale=scale,
             method="trf",
@@ -219,7 +259,7 @@ def _least_squares(  # type: ignore[no-untyped-def]
             xtol=1e-5,
             gtol=1e-8,
             max_nfev=nfev,
-            diff_step=1e-4,
+            diff_step=DIFF_STEP,
         )
 
     tries = [x0[free]]
@@ -228,7 +268,9 @@ def _least_squares(  # type: ignore[no-untyped-def]
         for name, v in st.items():
             if name in names and free[names.index(name)]:
                 xs[names.index(name)] = v
-        tries.append(np.clip(xs, lo, hi)[free])
+        xs = np.clip(xs, lo, hi)[free]
+        if not any(np.array_equal(xs, xo) for xo in tries):  # a start met twice is tried once
+            tries.append(xs)
     xt = tries[0]
     if len(tries) > 1:
         trial = [solve(xs, max(6, max_nfev // 6)) for xs in tries]

@@ -23,7 +23,7 @@ which effect it is.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
@@ -69,6 +69,7 @@ class EffectModel:
     def __init__(self, params: list[Param], starts: list[dict[str, float]] | None = None):
         self.params = params
         self.starts = starts or []  # alternative starts of the non-convex parameters
+        self._memo: dict[str, tuple[Context, tuple[float, ...], tuple[Array, ...], Any]] = {}
 
     # --- what the engine asks ------------------------------------------------------------
 
@@ -138,6 +139,34 @@ class EffectModel:
         return {}
 
     # --- bookkeeping ----------------------------------------------------------------------
+
+    def remembered(
+        self,
+        slot: str,
+        ctx: Context,
+        key: tuple[float, ...],
+        make: Callable[[], Any],
+        sources: tuple[Array, ...] = (),
+    ) -> Any:
+        """``make()``, computed again only when ``ctx``, the parameters ``key`` it depends on or
+        the arrays ``sources`` it transforms (the very same objects) changed since the last call
+        for ``slot``: a fit's difference columns move one parameter at a time, and a whole-session
+        state that does not depend on it is not integrated again. Arrays made are read-only."""
+        m = self._memo.get(slot)
+        if (
+            m is not None
+            and m[0] is ctx
+            and m[1] == key
+            and len(m[2]) == len(sources)
+            and all(a is b for a, b in zip(m[2], sources, strict=True))
+        ):
+            return m[3]
+        value = make()
+        for a in value if isinstance(value, tuple) else (value,):
+            if isinstance(a, np.ndarray):
+                a.flags.writeable = False
+        self._memo[slot] = (ctx, key, sources, value)
+        return value
 
     @property
     def n(self) -> int:

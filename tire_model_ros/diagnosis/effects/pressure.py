@@ -108,6 +108,12 @@ class SealedGas(EffectModel):
         return float(x[-1]) * 1e-3 * w.P
 
     def pressure(self, x: Array, ctx: Context) -> Array:
+        """The hidden gauge pressure [Pa] (integrated once per parameter set)."""
+        return self.remembered(  # type: ignore[no-any-return]
+            "p", ctx, tuple(float(v) for v in x), lambda: self._pressure(x, ctx)
+        )
+
+    def _pressure(self, x: Array, ctx: Context) -> Array:
         w = ctx.wheel
         if self.mode == "trend":
             return ctx.p_nom * (1.0 + float(x[0]) * w.t / ctx.t_end)

@@ -126,6 +126,7 @@ class HiddenThermal(_TTModel):
             {"T0_K": 30.0},  # a tyre brought warm: it cools before it heats
         ]
         super().__init__([*head, *stiff, *_tt_params(ctx, False)], starts if head else [])
+        self.n_nodes = len(head)  # the parameters first: what the nodes depend on
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
@@ -136,8 +137,17 @@ class HiddenThermal(_TTModel):
     def controls(self, ctx: Context) -> list[EffectModel]:
         return [HiddenThermal(ctx, m) for m in ("memoryless", "scrambled", "reversed", "trend")]
 
+    def _node_key(self, x: Array) -> tuple[float, ...]:
+        """The parameters the nodes depend on (the controls without nodes: none)."""
+        return tuple(float(v) for v in x[: self.n_nodes])
+
     def nodes(self, x: Array, ctx: Context) -> tuple[Array, Array]:
         """The tread (fast) and carcass (slow) rises [K] on the convention's scale."""
+        return self.remembered(  # type: ignore[no-any-return]
+            "nodes", ctx, self._node_key(x), lambda: self._integrate(x, ctx)
+        )
+
+    def _integrate(self, x: Array, ctx: Context) -> tuple[Array, Array]:
         w, k = ctx.wheel, ctx.k_thermal
         if self.mode == "memoryless":
             return k * w.P, k * w.P
@@ -152,15 +162,25 @@ class HiddenThermal(_TTModel):
 
     def temperature(self, x: Array, ctx: Context) -> Array:
         """The hidden tread temperature [degC] that the grip follows."""
-        fast, slow = self.nodes(x, ctx)
-        return ctx.T_amb + (fast if self.mode in ("memoryless", "trend") else fast + slow)
+
+        def make() -> Array:
+            fast, slow = self.nodes(x, ctx)
+            return ctx.T_amb + (fast if self.mode in ("memoryless", "trend") else fast + slow)
+
+        return self.remembered("T", ctx, self._node_key(x), make)  # type: ignore[no-any-return]
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         inp["T"] = self.temperature(x, ctx)
-        k = np.maximum(1.0 + self.values(x)["stiffness_per_K"] * self.nodes(x, ctx)[1], 0.3)
         kappa, alpha = inp["kappa"], inp["alpha"]
         assert kappa is not None and alpha is not None
-        inp["kappa"], inp["alpha"] = kappa * k, np.arctan(np.tan(alpha) * k)
+        c = self.values(x)["stiffness_per_K"]
+
+        def make() -> tuple[Array, Array]:
+            k = np.maximum(1.0 + c * self.nodes(x, ctx)[1], 0.3)
+            return kappa * k, np.arctan(np.tan(alpha) * k)
+
+        key = (*self._node_key(x), c)
+        inp["kappa"], inp["alpha"] = self.remembered("slip", ctx, key, make, (kappa, alpha))
 
     def inferred(self, x: Array, ctx: Context, inp: Mapping[str, Array | None]) -> dict[str, Array]:
         return {"T": self.temperature(x, ctx)}
