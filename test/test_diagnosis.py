@@ -623,6 +623,69 @@ def test_an_effect_is_stable_when_two_fits_do_the_same_to_the_forces():
     assert agree_doing(rms(0.5 * (c + d)), rms(c - d))
 
 
+def test_a_remembered_hidden_state_is_never_served_stale(model):
+    """The hidden thermal model integrates its nodes once per node parameters and scales the
+    slips once per stiffness and input arrays; whatever moves between calls (a node
+    parameter, the stiffness, a grip coefficient, the slips an earlier effect made, the
+    wheel), what it gives is what a fresh model computes."""
+    from tire_model_ros.diagnosis.effects.thermal import HiddenThermal
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"heating": True}, omit=["temperature"])
+    ctxs = [
+        make_context(prepare_wheel(w, model, np.random.default_rng(i)), model)
+        for i, w in enumerate([wheels[0], dataclasses.replace(wheels[0], Fx=1.5 * wheels[0].Fx)])
+    ]
+    (m,) = HiddenThermal.propose(ctxs[0])
+    x = m.x0.copy()
+    x[m.pnames.index("stiffness_per_K")] = -0.004
+    steps = [("tau_fast_s", 2.0), ("TT3", 0.3), ("stiffness_per_K", 0.5), ("T0_K", 10.0)]
+    for i, (name, dx) in enumerate([*steps, *steps]):
+        ctx = ctxs[i // len(steps)]
+        x[m.pnames.index(name)] += dx
+        for slips in (1.0, 1.0, 0.9):  # the same arrays, equal arrays, other arrays
+            inp = dict(ctx.wheel.inputs)
+            if slips != 1.0:
+                inp["kappa"] = inp["kappa"] * slips
+            ref = dict(inp)
+            m.inputs(x, ctx, inp)
+            HiddenThermal(ctx).inputs(x, ctx, ref)
+            for k in ("T", "kappa", "alpha"):
+                assert np.array_equal(inp[k], ref[k]), (name, slips, k)
+            assert not inp["T"].flags.writeable  # a remembered array cannot be changed
+
+
+def test_a_tyre_fits_jacobian_by_blocks_is_the_dense_one_at_a_fraction_of_the_cost():
+    """The block Jacobian of a fit shared by the wheels of a car equals scipy's dense forward
+    differences (the same steps, bounds respected), each wheel differenced only in the shared
+    parameter and its own."""
+    from tire_model_ros.diagnosis.fitting import _forward_steps, block_jacobian
+
+    t = np.linspace(0.0, 1.0, 50)
+    calls = []
+
+    def part(k: int, x: np.ndarray) -> np.ndarray:
+        calls.append(k)
+        return np.sin(x[0] * t) * np.exp(x[1 + k] * t) + k
+
+    x, lo, hi = np.array([0.7, -0.3, 2.0]), np.array([0.0, -1.0, 0.0]), np.array([1.0, 1.0, 2.0])
+    r0 = [part(k, x) for k in range(2)]
+    calls.clear()
+    J = block_jacobian(part, r0, x, lo, hi, [[0, 1], [0, 2]])
+    assert len(calls) == 4  # dense: 2 parts x 3 columns
+    h = _forward_steps(x, lo, hi)
+    assert h[2] < 0.0  # at its upper bound: differenced backwards
+    dense = np.stack(
+        [(np.concatenate([part(k, x + h * np.eye(3)[j]) for k in range(2)]) - np.concatenate(r0))
+         / h[j] for j in range(3)], axis=1,
+    )  # fmt: skip
+    assert np.array_equal(J, dense)
+    numdiff = pytest.importorskip("scipy.optimize._numdiff")
+    step = numdiff._compute_absolute_step(1e-4, x, r0[0], "2-point")
+    step, _ = numdiff._adjust_scheme_to_bounds(x, step, 1, "1-sided", lo, hi)
+    assert np.array_equal((x + step) - x, h)
+
+
 def test_improved_model_run_forward_as_the_node_runs_it_keeps_the_improvement(model, heated):
     """The improved .tir and its effects file, run sample by sample as the node runs them
     (model.states.EffectState: hidden nodes driven by the model's own forces, no temperature

@@ -8,7 +8,7 @@ starts (its non-convex directions, e.g. a time constant).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -191,20 +191,10 @@ def fit_shared(
     def fun(xt: Array) -> Array:
         return np.concatenate(per_part(xt))
 
+    columns = [[*range(cuts[0]), *range(cuts[k], cuts[k + 1])] for k in range(len(parts))]
+
     def jac(xt: Array) -> Array:
-        """Forward differences by blocks: a wheel's own parameters move its residuals only,
-        so each is differenced on its wheel alone (the shared ones on every wheel)."""
-        r0 = per_part(xt)
-        h = _forward_steps(xt, lo, hi)
-        J = np.zeros((sum(len(r) for r in r0), len(xt)))
-        row = 0
-        for k, r in enumerate(r0):
-            for j in [*range(cuts[0]), *range(cuts[k], cuts[k + 1])]:
-                xj = xt.copy()
-                xj[j] += h[j]
-                J[row : row + len(r), j] = (part(k, xj) - r) / h[j]
-            row += len(r)
-        return J
+        return block_jacobian(part, per_part(xt), xt, lo, hi, columns)
 
     # the starts name the shared parameters; the wheels' own are not named
     names = [p.name for p, f in zip(e.params, free_e, strict=True) if f]
@@ -221,6 +211,30 @@ def fit_shared(
         x = np.concatenate([settle(ms[:-1], x[:k], [(ctx, rows)]), e.settle(x[k:], seen)])
         fits.append(Fit(list(ms), x, 0.5 * float(r @ r), len(r), None, free))
     return fits
+
+
+def block_jacobian(
+    part: Callable[[int, Array], Array],
+    r0: Sequence[Array],
+    x: Array,
+    lo: Array,
+    hi: Array,
+    columns: Sequence[Sequence[int]],
+) -> Array:
+    """Forward-difference Jacobian of stacked residual parts, part ``k`` (``part(k, x)``, at
+    ``x``: ``r0[k]``) differenced only in the ``columns[k]`` it depends on (a wheel's own
+    parameters move its residuals only): a car's tyre fit pays for each wheel's baseline once,
+    not once per wheel. The other entries are zero."""
+    h = _forward_steps(x, lo, hi)
+    J = np.zeros((sum(len(r) for r in r0), len(x)))
+    row = 0
+    for k, r in enumerate(r0):
+        for j in columns[k]:
+            xj = x.copy()
+            xj[j] += h[j]
+            J[row : row + len(r), j] = (part(k, xj) - r) / h[j]
+        row += len(r)
+    return J
 
 
 def _forward_steps(x: Array, lo: Array, hi: Array) -> Array:
