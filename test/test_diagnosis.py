@@ -639,14 +639,14 @@ def test_a_remembered_hidden_state_is_never_served_stale(model):
     (m,) = HiddenThermal.propose(ctxs[0])
     x = m.x0.copy()
     x[m.pnames.index("stiffness_per_K")] = -0.004
-    steps = [("tau_fast_s", 2.0), ("TT3", 0.3), ("stiffness_per_K", 0.5), ("T0_K", 10.0)]
+    steps = [("tau_fast_s", 2.0), ("TT3", 0.3), ("stiffness_per_K", 0.002), ("T0_K", 10.0)]
     for i, (name, dx) in enumerate([*steps, *steps]):
         ctx = ctxs[i // len(steps)]
         x[m.pnames.index(name)] += dx
-        for slips in (1.0, 1.0, 0.9):  # the same arrays, equal arrays, other arrays
+        for slips in ("same", "equal", "other"):  # the arrays an earlier effect hands on
             inp = dict(ctx.wheel.inputs)
-            if slips != 1.0:
-                inp["kappa"] = inp["kappa"] * slips
+            if slips != "same":
+                inp["kappa"] = inp["kappa"] * (1.0 if slips == "equal" else 0.9)
             ref = dict(inp)
             m.inputs(x, ctx, inp)
             HiddenThermal(ctx).inputs(x, ctx, ref)

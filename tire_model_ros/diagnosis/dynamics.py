@@ -54,7 +54,7 @@ def _first_order(u, t, tau, y0):  # type: ignore[no-untyped-def]
         dt = t[i] - t[i - 1]
         if dt < 0.0:
             dt = 0.0
-        if abs(dt - dt_a) > 1e-9 * dt:
+        if not abs(dt - dt_a) <= 1e-9 * dt:  # (a NaN step is computed, as before: NaN)
             dt_a, a = dt, math.exp(-dt / tau)
         y[i] = a * y[i - 1] + (1.0 - a) * u[i - 1]
     return y
