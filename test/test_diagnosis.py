@@ -655,6 +655,34 @@ def test_a_remembered_hidden_state_is_never_served_stale(model):
             assert not inp["T"].flags.writeable  # a remembered array cannot be changed
 
 
+def test_a_recorded_temperature_reaches_the_grip_as_the_node_feeds_it(model):
+    """A recorded (surface) temperature reaches the grip partly at once and partly through
+    the lag of the tread's bulk: what the diagnosis fits on is, sample for sample, what the
+    node computes from the effects file it carries, and differs from both the channel and
+    its lag alone."""
+    from tire_model_ros.diagnosis.dynamics import first_order
+    from tire_model_ros.diagnosis.effects.thermal import RecordedThermal
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+    from tire_model_ros.model.states import EffectState, WheelEffects
+
+    wheels, _ = _session(model, {"heating": True})
+    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
+    (m,) = RecordedThermal.propose(ctx)
+    x = m.x0.copy()
+    x[m.pnames.index("tau_T_s")], x[m.pnames.index("T_surface_weight")] = 30.0, 0.4
+    fitted = m.temperature(x, ctx)
+    carried = m.carry(x, ctx)
+    assert carried is not None
+    state = EffectState(WheelEffects(**carried))
+    w, T = ctx.wheel, ctx.wheel.inputs["T"]
+    assert T is not None
+    node = [state.inputs(float(ti), 0.0, 0.0, 10.0, float(Ti), None, ctx.p_nom, ctx.T_amb)[2]
+            for ti, Ti in zip(w.t, T, strict=True)]  # fmt: skip
+    np.testing.assert_allclose(node, fitted, rtol=1e-10)
+    gap = float(np.max(np.abs(fitted - T)))
+    assert gap > 0.5 and np.max(np.abs(fitted - first_order(T, w.t, 30.0, T[0]))) > 0.5 * gap
+
+
 def test_a_tyre_fits_jacobian_by_blocks_is_the_dense_one_at_a_fraction_of_the_cost():
     """The block Jacobian of a fit shared by the wheels of a car equals scipy's dense forward
     differences (the same steps, bounds respected), each wheel differenced only in the shared

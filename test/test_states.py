@@ -35,6 +35,8 @@ FULL = WheelEffects(
     gas_start_K=3.0,
     offsets={"Fy": (12.0, 150.0), "Mz": (-1.5, 0.0)},
     alpha_shift_rad=0.002,
+    T_lag_s=30.0,
+    T_surface_weight=0.5,
     speed_table=((-2.0, 0.0, 1.0), (0.8, 1.0, 0.9)),
     sidewall=Sidewall(1.5, 0.1, 2.0, 0.4, 0.03, 0.05),
 )
@@ -265,7 +267,7 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
     fixed = sidewall_factor(rho, alpha, sw._replace(alpha_c_per_rho=0.0))
     assert np.all(fixed > 1.0 - 1e-6)  # alpha_c fixed: 0.14 rad never reaches it
     doc = json.loads(Effects({"/w": WheelEffects(sidewall=sw)}).to_json())
-    assert doc["version"] == 6 and doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"] == 0.1
+    assert doc["version"] == 7 and doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"] == 0.1
     del doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"]
     doc["version"] = 3
     assert Effects.from_dict(doc).wheels["/w"].sidewall == sw._replace(alpha_c_per_rho=0.0)
@@ -275,7 +277,7 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
     ("mangle", "words"),
     [
         (lambda d: d.update(format="x"), ["format"]),
-        (lambda d: d.update(version=7), ["version"]),
+        (lambda d: d.update(version=8), ["version"]),
         (lambda d: d.update(wheels={}), ["wheels"]),
         (lambda d: d["wheels"]["/w"]["thermal"].update(tau_s=-1.0), ["wheels./w.thermal.tau_s"]),
         (lambda d: d["wheels"]["/w"]["thermal_slow"].pop("start_K"), ["thermal_slow.start_K"]),
@@ -292,6 +294,7 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
             ["sidewall.deflection_pressure_weight"],
         ),
         (lambda d: d["wheels"]["/w"].update(alpha_shift_rad="x"), ["alpha_shift_rad"]),
+        (lambda d: d["wheels"]["/w"].update(T_surface_weight=-0.1), ["T_surface_weight"]),
         (lambda d: d["wheels"]["/w"]["offsets"].update(Fq={"N": 1}), ["offsets.Fq"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(ln_Vs=[1, 0, 2]), ["speed_table"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(mu=[1, -1, 1]), ["speed_table"]),
@@ -339,3 +342,29 @@ def test_a_measured_temperature_is_lagged_as_the_diagnosis_lags_it():
     ]
     np.testing.assert_allclose(got, first_order(T, t, 20.0, float(T[0])), rtol=1e-12)
     assert np.std(got) < 0.5 * np.std(T)  # lagged, not passed through
+
+
+def test_a_measured_surface_temperature_is_blended_with_its_lag_and_the_weight_round_trips():
+    """T_surface_weight w: the grip feels w of the measured (surface) temperature at once and
+    the rest through the lag; the file keeps w (version 7) and refuses one outside [0, 1]; a
+    version 6 file (the lag alone) reads with w = 0."""
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.005, 0.03, 300))
+    T = 40.0 + np.cumsum(rng.normal(0.0, 0.5, 300))
+    fx = WheelEffects(T_lag_s=20.0, T_surface_weight=0.4)
+    st = EffectState(fx)
+    got = [
+        st.inputs(float(ti), 0.0, 0.0, 10.0, float(Ti), None, 2.6e5, 25.0)[2]
+        for ti, Ti in zip(t, T, strict=True)
+    ]
+    want = 0.4 * T + 0.6 * first_order(T, t, 20.0, float(T[0]))
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    doc = json.loads(Effects({"/w": fx}).to_json())
+    assert doc["version"] == 7 and doc["wheels"]["/w"]["T_surface_weight"] == 0.4
+    assert Effects.from_dict(doc).wheels["/w"] == fx
+    doc["wheels"]["/w"]["T_surface_weight"] = 1.5
+    with pytest.raises(EffectsError, match="T_surface_weight"):
+        Effects.from_dict(doc)
+    del doc["wheels"]["/w"]["T_surface_weight"]
+    doc["version"] = 6
+    assert Effects.from_dict(doc).wheels["/w"] == WheelEffects(T_lag_s=20.0)

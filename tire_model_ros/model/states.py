@@ -44,14 +44,16 @@ if TYPE_CHECKING:
     from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
-VERSION = 6  # 6: a speed table relative to a reference speed (a reader of 5 would drop
-# reference_V_mps and scale the file's curve at every speed); 5: sidewall deflection with the
-# tyre file's vertical stiffness law (a reader of 4 would drop deflection_pressure_weight);
-# 4: sidewall contact at a slip angle that falls with the deflection, a gas node's start
-READS = (1, 2, 3, 4, 5, 6)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth
+VERSION = 7  # 7: a measured temperature blended with its lag (a reader of 6 would drop
+# T_surface_weight and feed the grip the lag alone); 6: a speed table relative to a reference
+# speed (a reader of 5 would drop reference_V_mps and scale the file's curve at every
+# speed); 5: sidewall deflection with the tyre file's vertical stiffness law (a reader of 4
+# would drop deflection_pressure_weight); 4: sidewall contact at a slip angle that falls
+# with the deflection, a gas node's start
+READS = (1, 2, 3, 4, 5, 6, 7)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth
 # and gate_width: the linear loss behind a 5 % gate), 3 (its slip angle fixed, the gas starting
-# at ambient), 4 (the deflection's pressure weight the air's share) and 5 (speed tables
-# absolute) read as subsets
+# at ambient), 4 (the deflection's pressure weight the air's share), 5 (speed tables
+# absolute) and 6 (a measured temperature's lag alone) read as subsets
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 NODES = ("thermal", "thermal_slow", "gas")
@@ -96,6 +98,8 @@ class WheelEffects:
     offsets: dict[str, tuple[float, float]] = field(default_factory=dict)  # ch: (N, N at FNOMIN)
     alpha_shift_rad: float = 0.0  # ply-steer as a slip-angle shift, added to alpha
     T_lag_s: float = 0.0  # a measured temperature is lagged by this first-order node [s]
+    T_surface_weight: float = 0.0  # the grip feels this share of the measured (surface)
+    # temperature at once and the rest through the lag (the tread's bulk beneath the sensor)
     speed_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (ln Vs, mu)
     # > 0: the table is relative to the file's slip curve at this speed [m/s] (friction at
     # Vs over friction at the same slip's sliding speed there); 0: absolute in Vs
@@ -119,6 +123,8 @@ class WheelEffects:
             d["alpha_shift_rad"] = self.alpha_shift_rad
         if self.T_lag_s:
             d["T_lag_s"] = self.T_lag_s
+            if self.T_surface_weight:
+                d["T_surface_weight"] = self.T_surface_weight
         if self.speed_table is not None:
             d["speed_table"] = {"ln_Vs": list(self.speed_table[0]), "mu": list(self.speed_table[1])}
             if self.speed_reference_mps:
@@ -199,6 +205,14 @@ def _number(d: Mapping[str, Any], key: str, where: str, lo: float = -math.inf) -
     if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < lo:
         raise EffectsError(f"{where}.{key}: expected a finite number >= {lo:g}, got {v!r}")
     return float(v)
+
+
+def _share(d: Mapping[str, Any], key: str, where: str) -> float:
+    """An optional share in [0, 1] (absent: 0)."""
+    v = _number(d, key, where, 0.0) if key in d else 0.0
+    if v > 1.0:
+        raise EffectsError(f"{where}.{key}: expected a share in [0, 1], got {v!r}")
+    return v
 
 
 def _node(d: object, where: str) -> Node:
@@ -293,6 +307,7 @@ def _wheel(d: object, where: str) -> WheelEffects:
         offsets=_offsets(d.get("offsets", {}), f"{where}.offsets"),
         alpha_shift_rad=_number(d, "alpha_shift_rad", where) if "alpha_shift_rad" in d else 0.0,
         T_lag_s=_number(d, "T_lag_s", where, 0.0) if "T_lag_s" in d else 0.0,
+        T_surface_weight=_share(d, "T_surface_weight", where),
         speed_table=_table(d["speed_table"], f"{where}.speed_table")
         if "speed_table" in d
         else None,
@@ -444,7 +459,8 @@ class EffectState:
         fx = self.fx
         T = T_C
         if T is not None and fx.T_lag_s > 0.0:
-            T = self._lagged(T, dt, drive)
+            share = fx.T_surface_weight
+            T = share * T + (1.0 - share) * self._lagged(T, dt, drive)
         if T is None:
             T = self.temperature_C if fx.thermal is not None else T_nom
         p = p_Pa

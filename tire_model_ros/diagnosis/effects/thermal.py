@@ -202,9 +202,12 @@ class HiddenThermal(_TTModel):
 
 class RecordedThermal(_TTModel):
     """A recorded tread temperature: the TT coefficients the file lacks (or has wrong) refitted
-    on it. ``mode`` "scrambled" (the channel block-shuffled) and "trend" (a ramp in time of
-    the same range) are its controls: the recorded temperature must explain more than a
-    drift that happens to go with it."""
+    on it. A sensor reads the surface; the grip feels the tread beneath it too, which lags
+    (PHYSICS.md: the surface in seconds on the bulk in minutes): the temperature the TT terms
+    see is ``T_surface_weight`` of the channel plus the rest of it through a first-order lag
+    ``tau_T_s`` (weight 1: the channel itself). ``mode`` "scrambled" (the channel
+    block-shuffled) and "trend" (a ramp in time of the same range) are its controls: the
+    recorded temperature must explain more than a drift that happens to go with it."""
 
     stable_in_time = False  # each half sees its own range of temperature
 
@@ -224,8 +227,11 @@ class RecordedThermal(_TTModel):
         # NOMTEMP far below every sample is ill-conditioned and extrapolates wildly).
         no_terms = all(ctx.base.get(k, 0.0) == 0.0 for k in TT_ALL)
         self.ref = round(float(np.median(T)), 1) if no_terms else ctx.T_amb
-        lag = Param("tau_T_s", 0.0, 0.0, 120.0, 2.0)  # what the grip feels lags the sensor
-        super().__init__([lag, *_tt_params(ctx)])
+        lag = [
+            Param("tau_T_s", 0.0, 0.0, 600.0, 5.0),  # the tread's bulk lags the sensor's surface
+            Param("T_surface_weight", 1.0, 0.0, 1.0, 0.2),  # what the grip feels of each
+        ]
+        super().__init__([*lag, *_tt_params(ctx)], [{"tau_T_s": 120.0, "T_surface_weight": 0.5}])
 
     def reference_C(self, ctx: Context) -> float:
         return self.ref
@@ -254,10 +260,11 @@ class RecordedThermal(_TTModel):
         elif self.mode == "trend":
             lo, hi = np.percentile(T, [5, 95])
             T = lo + (hi - lo) * ctx.wheel.t / ctx.t_end
-        return first_order(T, ctx.wheel.t, float(x[0]), float(T[0]))
+        w = float(x[1])
+        return w * T + (1.0 - w) * first_order(T, ctx.wheel.t, float(x[0]), float(T[0]))
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
-        return {"T_lag_s": float(x[0])}
+        return {"T_lag_s": float(x[0]), "T_surface_weight": float(x[1])}
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         inp["T"] = self.temperature(x, ctx)
