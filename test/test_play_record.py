@@ -4,6 +4,7 @@ original, stamps and values. The play schedule is checked without ROS."""
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -35,6 +36,38 @@ def wheel(prefix: str, n: int, seed: int) -> WheelSeries:
 
 
 # ----------------------------------------------------------------------------- no ROS
+
+
+def test_play_gives_its_writers_a_fast_heartbeat_only_where_it_may(tmp_path, monkeypatch):
+    """Fast DDS acknowledges a reliable writer's samples at its heartbeat (3 s by default), so
+    play's waits took 3 s each: while play makes its own participant, Fast DDS reads a profile
+    beating every 20 ms; the variable is gone after. A user's profiles, another rmw or a
+    context made before are left alone (a user's is said)."""
+    import xml.etree.ElementTree as ET
+
+    from tire_model_ros.ros.play import FASTDDS_PROFILES_ENV, writer_heartbeat
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv(FASTDDS_PROFILES_ENV, raising=False)
+    monkeypatch.delenv("RMW_IMPLEMENTATION", raising=False)
+    said: list[str] = []
+    with writer_heartbeat(True, said.append):
+        root = ET.parse(Path(os.environ[FASTDDS_PROFILES_ENV])).getroot()
+    ns = {"d": "http://www.eprosima.com"}
+    period = root.find("d:profiles/d:data_writer/d:times/d:heartbeatPeriod", ns)
+    assert period is not None and period.findtext("d:nanosec", namespaces=ns) == "20000000"
+    assert root.find("d:profiles/d:data_writer", ns).get("is_default_profile") == "true"
+    assert FASTDDS_PROFILES_ENV not in os.environ and not said
+    for own, rmw in ((False, None), (True, "rmw_cyclonedds_cpp")):
+        if rmw:
+            monkeypatch.setenv("RMW_IMPLEMENTATION", rmw)
+        with writer_heartbeat(own, said.append):
+            assert FASTDDS_PROFILES_ENV not in os.environ
+    monkeypatch.delenv("RMW_IMPLEMENTATION")
+    monkeypatch.setenv(FASTDDS_PROFILES_ENV, "mine.xml")
+    with writer_heartbeat(True, said.append):
+        assert os.environ[FASTDDS_PROFILES_ENV] == "mine.xml"
+    assert len(said) == 1 and FASTDDS_PROFILES_ENV in said[0]
 
 
 def test_schedule_order_and_topic_choice(tmp_path):
