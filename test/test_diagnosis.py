@@ -657,9 +657,10 @@ def test_a_remembered_hidden_state_is_never_served_stale(model):
 
 def test_a_recorded_temperature_reaches_the_grip_as_the_node_feeds_it(model):
     """A recorded (surface) temperature reaches the grip partly at once and partly through
-    the lag of the tread's bulk: what the diagnosis fits on is, sample for sample, what the
-    node computes from the effects file it carries, and differs from both the channel and
-    its lag alone."""
+    the lag of the tread's bulk, and the grip follows it through a table (a window of any
+    shape, 1 at the channel's median): what the diagnosis fits on is, sample for sample,
+    what the node computes from the effects file it carries. The temperature differs from
+    both the channel and its lag alone; the table holds its end values beyond its knots."""
     from tire_model_ros.diagnosis.dynamics import first_order
     from tire_model_ros.diagnosis.effects.thermal import RecordedThermal
     from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
@@ -670,17 +671,24 @@ def test_a_recorded_temperature_reaches_the_grip_as_the_node_feeds_it(model):
     (m,) = RecordedThermal.propose(ctx)
     x = m.x0.copy()
     x[m.pnames.index("tau_T_s")], x[m.pnames.index("T_surface_weight")] = 30.0, 0.4
-    fitted = m.temperature(x, ctx)
+    x[-m.n_grip :] = [1.1, 1.05, 0.9, 0.7]  # a window: grip peaks below the median
+    fitted, scale = m.temperature(x, ctx), m.mu_scale(x, ctx)
     carried = m.carry(x, ctx)
     assert carried is not None
+    knots, mu = carried["grip_table"]
+    assert mu[2] == 1.0 and np.all(np.diff(knots) > 0)
     state = EffectState(WheelEffects(**carried))
     w, T = ctx.wheel, ctx.wheel.inputs["T"]
     assert T is not None
-    node = [state.inputs(float(ti), 0.0, 0.0, 10.0, float(Ti), None, ctx.p_nom, ctx.T_amb)[2]
-            for ti, Ti in zip(w.t, T, strict=True)]  # fmt: skip
-    np.testing.assert_allclose(node, fitted, rtol=1e-10)
+    node = np.array([
+        state.inputs(float(ti), 0.1, 0.05, 10.0, float(Ti), None, ctx.p_nom, ctx.T_amb)[2:5:2]
+        for ti, Ti in zip(w.t, T, strict=True)
+    ])  # fmt: skip
+    np.testing.assert_allclose(node[:, 0], fitted, rtol=1e-10)
+    np.testing.assert_allclose(node[:, 1], scale, rtol=1e-10)
     gap = float(np.max(np.abs(fitted - T)))
     assert gap > 0.5 and np.max(np.abs(fitted - first_order(T, w.t, 30.0, T[0]))) > 0.5 * gap
+    assert np.ptp(scale) > 0.1 and np.interp([-50.0, 500.0], knots, mu).tolist() == [1.1, 0.7]
 
 
 def test_a_tyre_fits_jacobian_by_blocks_is_the_dense_one_at_a_fraction_of_the_cost():

@@ -37,6 +37,7 @@ FULL = WheelEffects(
     alpha_shift_rad=0.002,
     T_lag_s=30.0,
     T_surface_weight=0.5,
+    grip_table=((20.0, 40.0, 60.0), (1.05, 1.0, 0.9)),
     speed_table=((-2.0, 0.0, 1.0), (0.8, 1.0, 0.9)),
     sidewall=Sidewall(1.5, 0.1, 2.0, 0.4, 0.03, 0.05),
 )
@@ -295,6 +296,8 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
         ),
         (lambda d: d["wheels"]["/w"].update(alpha_shift_rad="x"), ["alpha_shift_rad"]),
         (lambda d: d["wheels"]["/w"].update(T_surface_weight=-0.1), ["T_surface_weight"]),
+        (lambda d: d["wheels"]["/w"]["grip_table"].update(T_C=[1, 0, 2]), ["grip_table", "T_C"]),
+        (lambda d: d["wheels"]["/w"]["grip_table"].update(mu=[1, 0, 1]), ["grip_table"]),
         (lambda d: d["wheels"]["/w"]["offsets"].update(Fq={"N": 1}), ["offsets.Fq"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(ln_Vs=[1, 0, 2]), ["speed_table"]),
         (lambda d: d["wheels"]["/w"]["speed_table"].update(mu=[1, -1, 1]), ["speed_table"]),
@@ -346,25 +349,30 @@ def test_a_measured_temperature_is_lagged_as_the_diagnosis_lags_it():
 
 def test_a_measured_surface_temperature_is_blended_with_its_lag_and_the_weight_round_trips():
     """T_surface_weight w: the grip feels w of the measured (surface) temperature at once and
-    the rest through the lag; the file keeps w (version 7) and refuses one outside [0, 1]; a
-    version 6 file (the lag alone) reads with w = 0."""
+    the rest through the lag, and its friction follows that temperature through the grip
+    table; the file keeps both (version 7) and refuses a w outside [0, 1]; a version 6 file
+    (the lag alone) reads with w = 0 and no table."""
     rng = np.random.default_rng(3)
     t = np.cumsum(rng.uniform(0.005, 0.03, 300))
     T = 40.0 + np.cumsum(rng.normal(0.0, 0.5, 300))
-    fx = WheelEffects(T_lag_s=20.0, T_surface_weight=0.4)
+    table = ((38.0, 40.0, 42.0), (1.1, 1.0, 0.8))
+    fx = WheelEffects(T_lag_s=20.0, T_surface_weight=0.4, grip_table=table)
     st = EffectState(fx)
-    got = [
-        st.inputs(float(ti), 0.0, 0.0, 10.0, float(Ti), None, 2.6e5, 25.0)[2]
+    got = np.array([
+        st.inputs(float(ti), 0.0, 0.0, 10.0, float(Ti), None, 2.6e5, 25.0)[2:5:2]
         for ti, Ti in zip(t, T, strict=True)
-    ]
+    ])  # fmt: skip
     want = 0.4 * T + 0.6 * first_order(T, t, 20.0, float(T[0]))
-    np.testing.assert_allclose(got, want, rtol=1e-12)
+    np.testing.assert_allclose(got[:, 0], want, rtol=1e-12)
+    np.testing.assert_allclose(got[:, 1], np.interp(want, *table), rtol=1e-12)
+    assert np.ptp(got[:, 1]) > 0.1
     doc = json.loads(Effects({"/w": fx}).to_json())
     assert doc["version"] == 7 and doc["wheels"]["/w"]["T_surface_weight"] == 0.4
+    assert doc["wheels"]["/w"]["grip_table"] == {"T_C": [38.0, 40.0, 42.0], "mu": [1.1, 1.0, 0.8]}
     assert Effects.from_dict(doc).wheels["/w"] == fx
     doc["wheels"]["/w"]["T_surface_weight"] = 1.5
     with pytest.raises(EffectsError, match="T_surface_weight"):
         Effects.from_dict(doc)
-    del doc["wheels"]["/w"]["T_surface_weight"]
+    del doc["wheels"]["/w"]["T_surface_weight"], doc["wheels"]["/w"]["grip_table"]
     doc["version"] = 6
     assert Effects.from_dict(doc).wheels["/w"] == WheelEffects(T_lag_s=20.0)

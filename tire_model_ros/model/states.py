@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from tire_model_ros.vocabulary import STANDARD_ATMOSPHERE_PA
 
@@ -44,9 +45,9 @@ if TYPE_CHECKING:
     from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
-VERSION = 7  # 7: a measured temperature blended with its lag (a reader of 6 would drop
-# T_surface_weight and feed the grip the lag alone); 6: a speed table relative to a reference
-# speed (a reader of 5 would drop reference_V_mps and scale the file's curve at every
+VERSION = 7  # 7: a measured temperature blended with its lag, a grip table in the temperature
+# (a reader of 6 would drop T_surface_weight and grip_table); 6: a speed table relative to a
+# reference speed (a reader of 5 would drop reference_V_mps and scale the file's curve at every
 # speed); 5: sidewall deflection with the tyre file's vertical stiffness law (a reader of 4
 # would drop deflection_pressure_weight); 4: sidewall contact at a slip angle that falls
 # with the deflection, a gas node's start
@@ -100,6 +101,8 @@ class WheelEffects:
     T_lag_s: float = 0.0  # a measured temperature is lagged by this first-order node [s]
     T_surface_weight: float = 0.0  # the grip feels this share of the measured (surface)
     # temperature at once and the rest through the lag (the tread's bulk beneath the sensor)
+    grip_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (T degC, mu): the
+    # friction scale against the temperature the grip feels, linear between, held beyond
     speed_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (ln Vs, mu)
     # > 0: the table is relative to the file's slip curve at this speed [m/s] (friction at
     # Vs over friction at the same slip's sliding speed there); 0: absolute in Vs
@@ -125,6 +128,8 @@ class WheelEffects:
             d["T_lag_s"] = self.T_lag_s
             if self.T_surface_weight:
                 d["T_surface_weight"] = self.T_surface_weight
+        if self.grip_table is not None:
+            d["grip_table"] = {"T_C": list(self.grip_table[0]), "mu": list(self.grip_table[1])}
         if self.speed_table is not None:
             d["speed_table"] = {"ln_Vs": list(self.speed_table[0]), "mu": list(self.speed_table[1])}
             if self.speed_reference_mps:
@@ -232,16 +237,17 @@ def _offsets(d: object, where: str) -> dict[str, tuple[float, float]]:
     return out
 
 
-def _table(t: Any, w: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+def _table(t: Any, w: str, knots: str = "ln_Vs") -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """A friction table: rising ``knots`` and one mu > 0 at each."""
     try:
-        lnV, mu = tuple(map(float, t["ln_Vs"])), tuple(map(float, t["mu"]))
+        x, mu = tuple(map(float, t[knots])), tuple(map(float, t["mu"]))
     except (TypeError, KeyError, ValueError):
-        raise EffectsError(f"{w}: expected lists ln_Vs and mu") from None
-    if len(lnV) < 2 or len(lnV) != len(mu) or any(b <= a for a, b in itertools.pairwise(lnV)):
-        raise EffectsError(f"{w}: ln_Vs must rise, with one mu per knot (2 or more)")
-    if not all(math.isfinite(v) and v > 0 for v in mu) or not all(map(math.isfinite, lnV)):
+        raise EffectsError(f"{w}: expected lists {knots} and mu") from None
+    if len(x) < 2 or len(x) != len(mu) or any(b <= a for a, b in itertools.pairwise(x)):
+        raise EffectsError(f"{w}: {knots} must rise, with one mu per knot (2 or more)")
+    if not all(math.isfinite(v) and v > 0 for v in mu) or not all(map(math.isfinite, x)):
         raise EffectsError(f"{w}: values must be finite, mu > 0")
-    return lnV, mu
+    return x, mu
 
 
 def _reference(t: Any, w: str) -> float:
@@ -308,6 +314,9 @@ def _wheel(d: object, where: str) -> WheelEffects:
         alpha_shift_rad=_number(d, "alpha_shift_rad", where) if "alpha_shift_rad" in d else 0.0,
         T_lag_s=_number(d, "T_lag_s", where, 0.0) if "T_lag_s" in d else 0.0,
         T_surface_weight=_share(d, "T_surface_weight", where),
+        grip_table=_table(d["grip_table"], f"{where}.grip_table", "T_C")
+        if "grip_table" in d
+        else None,
         speed_table=_table(d["speed_table"], f"{where}.speed_table")
         if "speed_table" in d
         else None,
@@ -366,6 +375,14 @@ def sidewall_factor(rho: Any, alpha_rad: Any, sw: Sidewall) -> Any:
     return np.maximum(1.0 - gate * loss, 0.0)
 
 
+def _arrays(
+    table: tuple[tuple[float, ...], tuple[float, ...]] | None,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None:
+    if table is None:
+        return None
+    return np.asarray(table[0], dtype=np.float64), np.asarray(table[1], dtype=np.float64)
+
+
 class EffectState:
     """The running states of one wheel's effects.
 
@@ -377,12 +394,9 @@ class EffectState:
 
     def __init__(self, effects: WheelEffects) -> None:
         self.fx = effects
-        # the table as arrays once: numpy.interp, as the diagnosis evaluates it
-        self._table = (
-            None
-            if effects.speed_table is None
-            else tuple(np.asarray(v, dtype=np.float64) for v in effects.speed_table)
-        )
+        # the tables as arrays once: numpy.interp, as the diagnosis evaluates them
+        self._table = _arrays(effects.speed_table)
+        self._grip = _arrays(effects.grip_table)
         self.reset()
 
     def reset(self) -> None:
@@ -476,6 +490,8 @@ class EffectState:
             k = max(1.0 + fx.stiffness_per_K * self.y["thermal_slow"], 0.3)
             kappa, alpha = kappa * k, math.atan(math.tan(alpha) * k)
         s = 1.0
+        if self._grip is not None:  # grip against the temperature it feels
+            s *= float(np.interp(T, *self._grip))
         if self._table is not None:
             slip = math.hypot(kappa, math.tan(alpha))
             ln_Vs, mu = self._table

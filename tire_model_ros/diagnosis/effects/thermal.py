@@ -3,7 +3,9 @@
 The grip of rubber has a temperature window (PHYSICS.md): it rises towards an optimum and
 falls beyond it; stiffness falls with temperature. The .tir temperature extension carries both
 (INTERFACE.md): grip through TT*3, TT*4 (linear and quadratic in dT: a window is a pair of
-opposite sign), stiffness through TT*1 (falling; TT*2 is left as the file has it).
+opposite sign), stiffness through TT*1 (falling; TT*2 is left as the file has it). A recorded
+channel spans enough of the window to show its shape: there the grip is a table against it
+(the effects file carries it), the stiffness TT*1.
 Concealed, the tread temperature is the sum of two lumped nodes heated by the frictional
 power: the tread surface (seconds) on the carcass (minutes), each cooling back when the power
 stops, plus what is left of a pre-warmed start.
@@ -33,6 +35,10 @@ TT_SPAN = 2.0  # bound of a TT coefficient change (dT is about 1 over the conven
 FACTOR_RANGE = (0.5, 1.5)
 PENALTY_WEIGHT = 300.0  # noise units per unit of factor outside its range
 RECORDED_T_MIN_STD_K = 0.5  # a recorded temperature that moves less tells nothing
+# A recorded temperature spans enough of the window to show its shape: the grip is a table at
+# these percentiles of the channel (the median's 1: the baseline's friction scaling is there)
+GRIP_KNOTS_PCT = (2.0, 25.0, 50.0, 75.0, 98.0)
+GRIP_KNOT_MIN_K = 0.1  # knots closer than this (a quantised channel) are spread apart
 
 
 def _axes(ctx: Context) -> list[str]:
@@ -49,6 +55,14 @@ def _tt_params(ctx: Context, stiffness: bool = True) -> list[Param]:
         return []
     grip = [Param("TT3", 0.0, -TT_SPAN, TT_SPAN, 0.1), Param("TT4", 0.0, -TT_SPAN, TT_SPAN, 0.1)]
     return ([Param("TT1", 0.0, -TT_SPAN, 0.0, 0.1)] if stiffness else []) + grip
+
+
+def _knots(T: Array) -> Array:
+    """The grip table's knots [degC]: percentiles of the channel, strictly rising."""
+    k = np.percentile(T, GRIP_KNOTS_PCT)
+    for i in range(1, len(k)):
+        k[i] = max(k[i], k[i - 1] + GRIP_KNOT_MIN_K)
+    return np.round(k, 2)
 
 
 class _TTModel(EffectModel):
@@ -201,13 +215,19 @@ class HiddenThermal(_TTModel):
 
 
 class RecordedThermal(_TTModel):
-    """A recorded tread temperature: the TT coefficients the file lacks (or has wrong) refitted
-    on it. A sensor reads the surface; the grip feels the tread beneath it too, which lags
-    (PHYSICS.md: the surface in seconds on the bulk in minutes): the temperature the TT terms
-    see is ``T_surface_weight`` of the channel plus the rest of it through a first-order lag
-    ``tau_T_s`` (weight 1: the channel itself). ``mode`` "scrambled" (the channel
-    block-shuffled) and "trend" (a ramp in time of the same range) are its controls: the
-    recorded temperature must explain more than a drift that happens to go with it."""
+    """A recorded tread temperature: the grip and stiffness laws the file lacks (or has
+    wrong) refitted on it. A sensor reads the surface; the grip feels the tread beneath it
+    too, which lags (PHYSICS.md: the surface in seconds on the bulk in minutes): the
+    temperature the model sees is ``T_surface_weight`` of the channel plus the rest of it
+    through a first-order lag ``tau_T_s`` (weight 1: the channel itself).
+
+    Grip against it is a window of any shape (PHYSICS.md: an optimum, often skewed, flat
+    beyond): a friction table at percentiles of the channel (similarity method, as the
+    speed law), which the quadratic TT*3, TT*4 cannot follow over a session that crosses the
+    optimum and saturates (car heat_recorded s29: the rest was named wear). The slip
+    stiffness falls through TT*1. ``mode`` "scrambled" (the channel block-shuffled) and
+    "trend" (a ramp in time of the same range) are its controls: the recorded temperature
+    must explain more than a drift that happens to go with it."""
 
     stable_in_time = False  # each half sees its own range of temperature
 
@@ -231,7 +251,16 @@ class RecordedThermal(_TTModel):
             Param("tau_T_s", 0.0, 0.0, 600.0, 5.0),  # the tread's bulk lags the sensor's surface
             Param("T_surface_weight", 1.0, 0.0, 1.0, 0.2),  # what the grip feels of each
         ]
-        super().__init__([*lag, *_tt_params(ctx)], [{"tau_T_s": 120.0, "T_surface_weight": 0.5}])
+        self.knots = _knots(T)
+        mid = GRIP_KNOTS_PCT.index(50.0)
+        grip = [
+            Param(f"mu_at_{k:.1f}_C", 1.0, *FACTOR_RANGE, 0.05)
+            for i, k in enumerate(self.knots)
+            if i != mid
+        ]
+        starts = [{"tau_T_s": 120.0, "T_surface_weight": 0.5}]
+        super().__init__([*lag, *_tt_params(ctx)[:1], *grip], starts)
+        self.n_grip = len(grip)
 
     def reference_C(self, ctx: Context) -> float:
         return self.ref
@@ -263,8 +292,21 @@ class RecordedThermal(_TTModel):
         w = float(x[1])
         return w * T + (1.0 - w) * first_order(T, ctx.wheel.t, float(x[0]), float(T[0]))
 
+    def grip(self, x: Array) -> tuple[float, ...]:
+        """The friction scale at each knot (1 at the median)."""
+        mu = [float(v) for v in x[len(x) - self.n_grip :]]
+        mu.insert(GRIP_KNOTS_PCT.index(50.0), 1.0)
+        return tuple(mu)
+
+    def mu_scale(self, x: Array, ctx: Context) -> Array:
+        return np.interp(self.temperature(x, ctx), self.knots, self.grip(x))
+
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
-        return {"T_lag_s": float(x[0]), "T_surface_weight": float(x[1])}
+        return {
+            "T_lag_s": float(x[0]),
+            "T_surface_weight": float(x[1]),
+            "grip_table": (tuple(float(k) for k in self.knots), self.grip(x)),
+        }
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         inp["T"] = self.temperature(x, ctx)
