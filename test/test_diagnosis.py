@@ -691,6 +691,16 @@ def test_a_recorded_temperature_reaches_the_grip_as_the_node_feeds_it(model):
     assert np.ptp(scale) > 0.1 and np.interp([-50.0, 500.0], knots, mu).tolist() == [1.1, 0.7]
 
 
+def test_the_grip_tables_knots_rise_on_a_channel_that_mostly_sits_still():
+    """A quantised channel that sits at one value most of the time still gives rising knots,
+    each its own parameter name."""
+    from tire_model_ros.diagnosis.effects.thermal import _knots
+
+    T = np.r_[np.full(900, 40.0), np.linspace(40.0, 45.0, 100)]
+    k = _knots(T)
+    assert np.all(np.diff(k) >= 0.09) and len({f"{v:.2f}" for v in k}) == len(k)
+
+
 def test_a_tyre_fits_jacobian_by_blocks_is_the_dense_one_at_a_fraction_of_the_cost():
     """The block Jacobian of a fit shared by the wheels of a car equals scipy's dense forward
     differences (the same steps, bounds respected), each wheel differenced only in the shared

@@ -254,7 +254,7 @@ class RecordedThermal(_TTModel):
         self.knots = _knots(T)
         mid = GRIP_KNOTS_PCT.index(50.0)
         grip = [
-            Param(f"mu_at_{k:.1f}_C", 1.0, *FACTOR_RANGE, 0.05)
+            Param(f"mu_at_{k:.2f}_C", 1.0, *FACTOR_RANGE, 0.05)  # knots >= 0.1 K apart
             for i, k in enumerate(self.knots)
             if i != mid
         ]
