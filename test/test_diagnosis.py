@@ -671,7 +671,7 @@ def test_a_recorded_temperature_reaches_the_grip_as_the_node_feeds_it(model):
     (m,) = RecordedThermal.propose(ctx)
     x = m.x0.copy()
     x[m.pnames.index("tau_T_s")], x[m.pnames.index("T_surface_weight")] = 30.0, 0.4
-    x[-m.n_grip :] = [1.1, 1.05, 0.9, 0.7]  # a window: grip peaks below the median
+    x[1 - len(m.knots) :] = [1.1, 1.05, 0.9, 0.7]  # a window: grip peaks below the median
     fitted, scale = m.temperature(x, ctx), m.mu_scale(x, ctx)
     carried = m.carry(x, ctx)
     assert carried is not None

@@ -46,15 +46,21 @@ def _axes(ctx: Context) -> list[str]:
     return [axis for axis, key in (("X", "x"), ("Y", "y")) if ctx.informative[key]]
 
 
-def _tt_params(ctx: Context, stiffness: bool = True) -> list[Param]:
-    """Grip TT3, TT4 and (``stiffness``) TT1, one of each for both directions (the window is
-    the rubber's: TTX3 = TTY3 ...; a direction swept in a few sweeps borrows the other's):
-    grip has a window (a quadratic), stiffness falls with temperature (PHYSICS.md:
-    monotonically, so linear, TT*2 left as the file has it)."""
+# One TT coefficient of each for both directions (the rubber's: TTX3 = TTY3 ...; a direction
+# swept in a few sweeps borrows the other's).
+
+
+def _grip_params(ctx: Context) -> list[Param]:
+    """Grip TT3, TT4: a window (a quadratic)."""
     if not _axes(ctx):
         return []
-    grip = [Param("TT3", 0.0, -TT_SPAN, TT_SPAN, 0.1), Param("TT4", 0.0, -TT_SPAN, TT_SPAN, 0.1)]
-    return ([Param("TT1", 0.0, -TT_SPAN, 0.0, 0.1)] if stiffness else []) + grip
+    return [Param("TT3", 0.0, -TT_SPAN, TT_SPAN, 0.1), Param("TT4", 0.0, -TT_SPAN, TT_SPAN, 0.1)]
+
+
+def _stiffness_params(ctx: Context) -> list[Param]:
+    """Stiffness TT1: falling with temperature (PHYSICS.md: monotonically, so linear, TT*2
+    left as the file has it)."""
+    return [Param("TT1", 0.0, -TT_SPAN, 0.0, 0.1)] if _axes(ctx) else []
 
 
 def _knots(T: Array) -> Array:
@@ -139,7 +145,7 @@ class HiddenThermal(_TTModel):
             {"tau_slow_s": 60.0, "slow_share": 2.0},
             {"T0_K": 30.0},  # a tyre brought warm: it cools before it heats
         ]
-        super().__init__([*head, *stiff, *_tt_params(ctx, False)], starts if head else [])
+        super().__init__([*head, *stiff, *_grip_params(ctx)], starts if head else [])
         self.n_nodes = len(head)  # the parameters first: what the nodes depend on
 
     @classmethod
@@ -251,16 +257,14 @@ class RecordedThermal(_TTModel):
             Param("tau_T_s", 0.0, 0.0, 600.0, 5.0),  # the tread's bulk lags the sensor's surface
             Param("T_surface_weight", 1.0, 0.0, 1.0, 0.2),  # what the grip feels of each
         ]
-        self.knots = _knots(T)
-        mid = GRIP_KNOTS_PCT.index(50.0)
+        self.knots, self.mid = _knots(T), GRIP_KNOTS_PCT.index(50.0)
         grip = [
             Param(f"mu_at_{k:.2f}_C", 1.0, *FACTOR_RANGE, 0.05)  # knots >= 0.1 K apart
             for i, k in enumerate(self.knots)
-            if i != mid
+            if i != self.mid
         ]
         starts = [{"tau_T_s": 120.0, "T_surface_weight": 0.5}]
-        super().__init__([*lag, *_tt_params(ctx)[:1], *grip], starts)
-        self.n_grip = len(grip)
+        super().__init__([*lag, *_stiffness_params(ctx), *grip], starts)
 
     def reference_C(self, ctx: Context) -> float:
         return self.ref
@@ -293,9 +297,9 @@ class RecordedThermal(_TTModel):
         return w * T + (1.0 - w) * first_order(T, ctx.wheel.t, float(x[0]), float(T[0]))
 
     def grip(self, x: Array) -> tuple[float, ...]:
-        """The friction scale at each knot (1 at the median)."""
-        mu = [float(v) for v in x[len(x) - self.n_grip :]]
-        mu.insert(GRIP_KNOTS_PCT.index(50.0), 1.0)
+        """The friction scale at each knot (1 at the median; the knots' parameters last)."""
+        mu = [float(v) for v in x[len(x) - len(self.knots) + 1 :]]
+        mu.insert(self.mid, 1.0)
         return tuple(mu)
 
     def mu_scale(self, x: Array, ctx: Context) -> Array:
