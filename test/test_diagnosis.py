@@ -294,6 +294,47 @@ def test_a_carcass_brought_hot_to_the_rig_is_recovered_with_its_warm_start(model
     assert 2.0 * f.cost / f.m < 2.0  # the noise's own cost per residual is about 1
 
 
+def test_a_window_flat_beyond_its_optimum_is_followed_by_the_hidden_grip_table(model):
+    """Concealed heating of a tyre whose grip rises 8 % over its first 20 K, then holds (a
+    skewed window, flat beyond: PHYSICS.md), which the quadratic TT3, TT4 cannot follow: the
+    table, fitted after the quadratic has led the nodes in, brings the fit to the noise; its
+    knots beyond the hottest fitted sample hold the grip (not the start's 1), and the
+    effects file carries the table the node scales by."""
+    from tire_model_ros.diagnosis.effects.thermal import HiddenThermal
+    from tire_model_ros.diagnosis.fitting import fit
+    from tire_model_ros.diagnosis.predict import predict
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"noise": True})
+    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
+    hidden = HiddenThermal(ctx)
+    truth = dict(zip(hidden.pnames, hidden.x0, strict=True))
+    truth.update(tau_fast_s=3.0, tau_slow_s=150.0, slow_share=2.0)
+    truth.update({"mu_at_rise_20_K": 1.08, "mu_at_rise_40_K": 1.08, "mu_at_rise_60_K": 1.08})
+    truth["mu_at_rise_100_K"] = 1.08
+    x = np.array([truth[k] for k in hidden.pnames])
+    rows = np.arange(len(ctx.wheel.t))
+    rise = hidden.temperature(x, ctx) - ctx.T_amb
+    assert 20.0 < rise.max() < 40.0  # the session reaches the flat part, not the last knots
+    rng = np.random.default_rng(1)
+    for ch, F in predict([hidden], x, ctx, rows).items():
+        if ch in ctx.channels:
+            ctx.wheel.meas[ch][:] = F + rng.normal(0.0, ctx.sigma[ch], len(rows))
+    quadratic = [p.name for p in hidden.params if not p.refines]
+    only_quadratic = np.array([p.name in quadratic for p in hidden.params])
+    f_quad = fit([hidden], ctx, rows, free=only_quadratic)
+    f = fit([hidden], ctx, rows)
+    # the noise's own cost per residual is about 1 (the quadratic alone: 249)
+    assert 2.0 * f.cost / f.m < 1.3 and 2.0 * f_quad.cost / f_quad.m > 10.0, (f.cost, f_quad.cost)
+    knots, mu = hidden.grip_table(f.x)
+    hot = float((hidden.temperature(f.x, ctx) - ctx.T_amb).max())
+    beyond = [m for k, m, below in zip(knots, mu, knots[:1] + knots[:-1], strict=True)
+              if below - ctx.T_amb >= hot]  # fmt: skip
+    assert beyond and all(m == mu[len(mu) - len(beyond) - 1] for m in beyond), (knots, mu, hot)
+    carried = hidden.carry(f.x, ctx)
+    assert carried is not None and carried["grip_table"] == (knots, mu)
+
+
 def test_friction_step_is_named_drift_and_located(model):
     """A belt friction step: drift, in the step form, at the rig's time; model error gone."""
     wheels, truth = _session(model, {"mu_step": {"ratio": 0.93}})

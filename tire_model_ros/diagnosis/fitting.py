@@ -90,6 +90,11 @@ def _fitted(models: Sequence[EffectModel]) -> Mask:
     return np.array([p.fitted for m in models for p in m.params], dtype=bool)
 
 
+def _refines(models: Sequence[EffectModel]) -> Mask:
+    """Per parameter: whether it is fitted only after the others (``Param.refines``)."""
+    return np.array([p.refines for m in models for p in m.params], dtype=bool)
+
+
 def _scales(models: Sequence[EffectModel]) -> Array:
     """Per parameter: its typical scale (the optimiser's x_scale)."""
     return np.array([p.scale for m in models for p in m.params], dtype=np.float64)
@@ -131,7 +136,9 @@ def fit(
         return residuals(models, full(xt), ctx, rows)
 
     names = [p.name for m in models for p in m.params]
-    res = _least_squares(fun, x0, free, lo, hi, scale, names, models[-1].starts, max_nfev)
+    starts = models[-1].starts
+    refines = _refines(models)
+    res = _least_squares(fun, x0, free, lo, hi, scale, names, starts, max_nfev, None, refines)
     # a model whose parameters were all held here (a tyre's, settled on every wheel) keeps them
     x = settle(models, full(res.x), [(ctx, rows)])
     parts = zip(
@@ -200,7 +207,9 @@ def fit_shared(
     names = [p.name for p, f in zip(e.params, free_e, strict=True) if f]
     names += [""] * (len(x0) - len(names))
     every = np.ones(len(x0), bool)
-    res = _least_squares(fun, x0, every, lo, hi, scale, names, e.starts, max_nfev, jac)
+    refines = np.zeros(len(x0), bool)
+    refines[: cuts[0]] = _refines([e])[free_e]
+    res = _least_squares(fun, x0, every, lo, hi, scale, names, e.starts, max_nfev, jac, refines)
     fits = []
     seen = [(ctx, rows) for _, ctx, rows, _, _ in parts]
     for (ms, ctx, rows, _, _), x, (_, fh, *_) in zip(parts, vectors(res.x), heads, strict=True):
@@ -255,11 +264,12 @@ def _forward_steps(x: Array, lo: Array, hi: Array) -> Array:
 
 def _least_squares(  # type: ignore[no-untyped-def]
     fun, x0: Array, free: Mask, lo: Array, hi: Array, scale: Array, names: list[str],
-    starts: Sequence[dict[str, float]], max_nfev: int, jac=None,
+    starts: Sequence[dict[str, float]], max_nfev: int, jac=None, refines: Mask | None = None,
 ):  # fmt: skip
     """Trust-region reflective least squares of the ``free`` entries of ``x0``, from the
     best of ``x0`` and the alternative ``starts`` (each briefly tried first); ``jac``: the
-    Jacobian's own function (None: forward differences of every column)."""
+    Jacobian's own function (None: forward differences of every column). The entries that
+    ``refines`` marks are held at ``x0`` until the others have converged."""
 
     def solve(x_start: Array, nfev: int):  # type: ignore[no-untyped-def]
         return least_squares(
@@ -276,6 +286,24 @@ def _least_squares(  # type: ignore[no-untyped-def]
             diff_step=DIFF_STEP,
         )
 
+    held = np.zeros(len(x0), bool) if refines is None else np.asarray(refines, bool) & free
+    if held.any() and (free & ~held).any():
+        xt = x0[free]
+        keep = ~held[free]
+
+        def whole(xa: Array) -> Array:
+            out = xt.copy()
+            out[keep] = xa
+            return out
+
+        def jac_kept(xa: Array) -> Array:
+            return np.asarray(jac(whole(xa)))[:, keep]
+
+        first = _least_squares(
+            lambda xa: fun(whole(xa)), x0, free & ~held, lo, hi, scale[keep], names, starts,
+            max_nfev, None if jac is None else jac_kept,
+        )  # fmt: skip
+        return solve(whole(first.x), max_nfev)
     tries = [x0[free]]
     for st in starts:
         xs = x0.copy()

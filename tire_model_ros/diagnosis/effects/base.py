@@ -42,7 +42,9 @@ Index = npt.NDArray[np.int64]
 @dataclass(frozen=True)
 class Param:
     """One parameter: start, physical bounds and typical scale (for the optimiser); one that
-    is not ``fitted`` is set by the model's ``settle`` after the fit."""
+    is not ``fitted`` is set by the model's ``settle`` after the fit; one that ``refines``
+    is held at its start until the others are fitted, then fitted with them (a detail whose
+    freedom would lead the first descent astray)."""
 
     name: str
     x0: float
@@ -50,6 +52,7 @@ class Param:
     hi: float
     scale: float
     fitted: bool = True
+    refines: bool = False
 
 
 class EffectModel:

@@ -3,9 +3,11 @@
 The grip of rubber has a temperature window (PHYSICS.md): it rises towards an optimum and
 falls beyond it; stiffness falls with temperature. The .tir temperature extension carries both
 (INTERFACE.md): grip through TT*3, TT*4 (linear and quadratic in dT: a window is a pair of
-opposite sign), stiffness through TT*1 (falling; TT*2 is left as the file has it). A recorded
-channel spans enough of the window to show its shape: there the grip is a table against it
-(the effects file carries it), the stiffness TT*1.
+opposite sign), stiffness through TT*1 (falling; TT*2 is left as the file has it). A window
+may be skewed and flat beyond its optimum, which a quadratic cannot follow: the grip is also
+a table against the temperature (the effects file carries it). A recorded channel spans
+enough of the window to show its shape: there the table is the grip law, the .tir keeps TT*1.
+Concealed, the table refines the quadratic: fitted after it, from where it has led.
 Concealed, the tread temperature is the sum of two lumped nodes heated by the frictional
 power: the tread surface (seconds) on the carcass (minutes), each cooling back when the power
 stops, plus what is left of a pre-warmed start.
@@ -13,7 +15,7 @@ stops, plus what is left of a pre-warmed start.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -22,7 +24,7 @@ from tire_model_ros.model.states import Node
 
 from ..dynamics import first_order
 from ..prepare import THERMAL_RISE_REF_K, Context
-from .base import Array, EffectModel, Param
+from .base import Array, EffectModel, Index, Param
 
 TAU_FAST_S = (0.3, 60.0)  # tread surface (PHYSICS.md: seconds)
 TAU_SLOW_S = (30.0, 900.0)  # carcass (PHYSICS.md: 1-5 min; up to 15 for a big tyre)
@@ -39,6 +41,9 @@ RECORDED_T_MIN_STD_K = 0.5  # a recorded temperature that moves less tells nothi
 # these percentiles of the channel (the median's 1: the baseline's friction scaling is there)
 GRIP_KNOTS_PCT = (2.0, 25.0, 50.0, 75.0, 98.0)
 GRIP_KNOT_MIN_K = 0.1  # knots closer than this (a quantised channel) are spread apart
+# Concealed, the temperature's scale is the convention's: the table's knots at these rises
+# above ambient [K] (ambient's 1: the quadratic is 1 there too), beyond them the grip held
+HIDDEN_GRIP_RISES_K = (0.0, 20.0, 40.0, 60.0, 100.0)
 
 
 def _axes(ctx: Context) -> list[str]:
@@ -72,10 +77,49 @@ def _knots(T: Array) -> Array:
 
 
 class _TTModel(EffectModel):
-    """Shared: the TT parameters, applied to TTX and TTY additively to the file's, and the
-    factors they make stay physical over the model's temperatures."""
+    """Shared: the grip table (its parameters last), the TT parameters, applied to TTX and
+    TTY additively to the file's, and the factors they make stay physical over the model's
+    temperatures."""
 
     word = "temperature"
+    knots: Array  # of the grip table [degC]
+    anchor: int  # the knot whose friction scale is 1
+
+    def grip_params(self, names: list[str], refines: bool = False) -> list[Param]:
+        """A friction scale at each knot but the anchor's, named ``names``."""
+        return [
+            Param(n, 1.0, *FACTOR_RANGE, 0.05, refines=refines)
+            for i, n in enumerate(names)
+            if i != self.anchor
+        ]
+
+    def grip(self, x: Array) -> tuple[float, ...]:
+        """The friction scale at each knot (the grip parameters come last)."""
+        mu = [float(v) for v in x[len(x) - len(self.knots) + 1 :]]
+        mu.insert(self.anchor, 1.0)
+        return tuple(mu)
+
+    def grip_table(self, x: Array) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """What the effects file carries: the knots [degC] and the scale at each."""
+        return tuple(float(k) for k in self.knots), self.grip(x)
+
+    def mu_scale(self, x: Array, ctx: Context) -> Array:
+        return np.interp(self.temperature(x, ctx), self.knots, self.grip(x))
+
+    def settle(self, x: Array, seen: Sequence[tuple[Context, Index]]) -> Array:
+        """The grip held beyond the hottest fitted sample (PHYSICS.md: flat beyond the
+        window): a knot whose neighbours below are all hotter is not seen by any fitted row,
+        and would otherwise keep its start and bend the grip back to it."""
+        T_max = max(float(np.max(self.temperature(x, ctx)[rows])) for ctx, rows in seen)
+        x = np.array(x, dtype=float)
+        first = len(x) - len(self.knots) + 1  # the grip parameters come last
+        mu = list(self.grip(x))
+        for i in range(1, len(self.knots)):
+            if self.knots[i - 1] >= T_max:
+                mu[i] = mu[i - 1]
+        del mu[self.anchor]
+        x[first:] = mu
+        return x
 
     def coef(self, x: Array, ctx: Context) -> dict[str, float]:
         out = {}
@@ -109,8 +153,9 @@ class _TTModel(EffectModel):
 
 class HiddenThermal(_TTModel):
     """Concealed heating: the grip follows T = T_amb + fast + share * slow through TT*3 and
-    TT*4 (the tread surface on the carcass, heated by k P_fric; the carcass node starts at a
-    pre-warmed T0), the slip stiffness the carcass alone: a factor 1 + c * slow [1/K].
+    TT*4, refined by a table at :data:`HIDDEN_GRIP_RISES_K` (the tread surface on the
+    carcass, heated by k P_fric; the carcass node starts at a pre-warmed T0), the slip
+    stiffness the carcass alone: a factor 1 + c * slow [1/K].
 
     ``mode`` "physical" is the model; "memoryless" (T follows the power at once), "scrambled"
     (the same nodes driven by a block-shuffled power: the tread's seconds tested), "reversed"
@@ -145,7 +190,10 @@ class HiddenThermal(_TTModel):
             {"tau_slow_s": 60.0, "slow_share": 2.0},
             {"T0_K": 30.0},  # a tyre brought warm: it cools before it heats
         ]
-        super().__init__([*head, *stiff, *_grip_params(ctx)], starts if head else [])
+        self.knots, self.anchor = ctx.T_amb + np.asarray(HIDDEN_GRIP_RISES_K), 0
+        names = [f"mu_at_rise_{r:g}_K" for r in HIDDEN_GRIP_RISES_K]
+        table = self.grip_params(names, refines=True) if _axes(ctx) else []
+        super().__init__([*head, *stiff, *_grip_params(ctx), *table], starts if head else [])
         self.n_nodes = len(head)  # the parameters first: what the nodes depend on
 
     @classmethod
@@ -217,6 +265,7 @@ class HiddenThermal(_TTModel):
             "thermal_slow": Node(v["tau_slow_s"], ctx.k_thermal * v["slow_share"]),
             "thermal_slow_start_K": v["T0_K"],
             "stiffness_per_K": v["stiffness_per_K"],
+            "grip_table": self.grip_table(x),
         }
 
 
@@ -257,12 +306,8 @@ class RecordedThermal(_TTModel):
             Param("tau_T_s", 0.0, 0.0, 600.0, 5.0),  # the tread's bulk lags the sensor's surface
             Param("T_surface_weight", 1.0, 0.0, 1.0, 0.2),  # what the grip feels of each
         ]
-        self.knots, self.mid = _knots(T), GRIP_KNOTS_PCT.index(50.0)
-        grip = [
-            Param(f"mu_at_{k:.2f}_C", 1.0, *FACTOR_RANGE, 0.05)  # knots >= 0.1 K apart
-            for i, k in enumerate(self.knots)
-            if i != self.mid
-        ]
+        self.knots, self.anchor = _knots(T), GRIP_KNOTS_PCT.index(50.0)
+        grip = self.grip_params([f"mu_at_{k:.2f}_C" for k in self.knots])  # >= 0.1 K apart
         starts = [{"tau_T_s": 120.0, "T_surface_weight": 0.5}]
         super().__init__([*lag, *_stiffness_params(ctx), *grip], starts)
 
@@ -296,20 +341,11 @@ class RecordedThermal(_TTModel):
         w = float(x[1])
         return w * T + (1.0 - w) * first_order(T, ctx.wheel.t, float(x[0]), float(T[0]))
 
-    def grip(self, x: Array) -> tuple[float, ...]:
-        """The friction scale at each knot (1 at the median; the knots' parameters last)."""
-        mu = [float(v) for v in x[len(x) - len(self.knots) + 1 :]]
-        mu.insert(self.mid, 1.0)
-        return tuple(mu)
-
-    def mu_scale(self, x: Array, ctx: Context) -> Array:
-        return np.interp(self.temperature(x, ctx), self.knots, self.grip(x))
-
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return {
             "T_lag_s": float(x[0]),
             "T_surface_weight": float(x[1]),
-            "grip_table": (tuple(float(k) for k in self.knots), self.grip(x)),
+            "grip_table": self.grip_table(x),
         }
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
