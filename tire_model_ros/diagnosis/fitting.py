@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from .effects.base import Array, EffectModel, Index, Mask
@@ -90,9 +91,9 @@ def _fitted(models: Sequence[EffectModel]) -> Mask:
     return np.array([p.fitted for m in models for p in m.params], dtype=bool)
 
 
-def _refines(models: Sequence[EffectModel]) -> Mask:
-    """Per parameter: whether it is fitted only after the others (``Param.refines``)."""
-    return np.array([p.refines for m in models for p in m.params], dtype=bool)
+def _stages(models: Sequence[EffectModel]) -> npt.NDArray[np.int64]:
+    """Per parameter: its stage (``Param.stage``)."""
+    return np.array([p.stage for m in models for p in m.params], dtype=np.int64)
 
 
 def _scales(models: Sequence[EffectModel]) -> Array:
@@ -107,13 +108,15 @@ def fit(
     x0: Array | None = None,
     max_nfev: int = MAX_NFEV,
     free: Mask | None = None,
+    stage: int = 0,
 ) -> Fit:
     """Bounded least squares of the models' parameters on ``rows``, then each model settled
     on them (``EffectModel.settle``).
 
     ``free``: which parameters are fitted (None: all that are ``fitted``); the others keep
     their ``x0`` values (``Fit.x`` is always the whole vector). Alternative starts are those of
-    the last model.
+    the last model. Models with refinements are fitted in two stages (``Param.stage``; the
+    second from the first's handover, without alternative starts).
     """
     models = list(models)
     if x0 is None:
@@ -122,6 +125,13 @@ def fit(
     x0 = np.clip(np.asarray(x0, float), lo, hi)
     free = np.ones(len(x0), dtype=bool) if free is None else np.asarray(free, dtype=bool)
     free = free & _fitted(models)
+    stages = _stages(models)
+    if stage == 0 and (stages[free] == 2).any():  # a guide first, then its refinement
+        first = fit(models, ctx, rows, x0, max_nfev, free & (stages != 2), 1)
+        x1 = np.concatenate(
+            [m.handover(xm, ctx) for m, xm in zip(models, split_x(models, first.x), strict=True)]
+        )
+        return fit(models, ctx, rows, x1, max_nfev, free & (stages != 1), 2)
     if not free.any():
         r = residuals(models, x0, ctx, rows)
         return Fit(models, x0, 0.5 * float(r @ r), len(r), free=free)
@@ -136,9 +146,8 @@ def fit(
         return residuals(models, full(xt), ctx, rows)
 
     names = [p.name for m in models for p in m.params]
-    starts = models[-1].starts
-    refines = _refines(models)
-    res = _least_squares(fun, x0, free, lo, hi, scale, names, starts, max_nfev, None, refines)
+    starts = models[-1].starts if stage < 2 else []
+    res = _least_squares(fun, x0, free, lo, hi, scale, names, starts, max_nfev)
     # a model whose parameters were all held here (a tyre's, settled on every wheel) keeps them
     x = settle(models, full(res.x), [(ctx, rows)])
     parts = zip(
@@ -160,6 +169,8 @@ def fit_shared(
     baseline); each part is (models, context, rows, the other models' parameters, which of
     them are free). Returns each part's fit (the shared parameters not ``free`` in it)."""
     e = parts[0][0][-1]
+    if _stages([e]).any():
+        raise ValueError(f"{e}: a tyre's shared effect is fitted in one stage")
     lo_e, hi_e = bounds([e])
     x0_e = np.clip(e.x0, lo_e, hi_e)
     free_e = _fitted([e])
@@ -207,9 +218,7 @@ def fit_shared(
     names = [p.name for p, f in zip(e.params, free_e, strict=True) if f]
     names += [""] * (len(x0) - len(names))
     every = np.ones(len(x0), bool)
-    refines = np.zeros(len(x0), bool)
-    refines[: cuts[0]] = _refines([e])[free_e]
-    res = _least_squares(fun, x0, every, lo, hi, scale, names, e.starts, max_nfev, jac, refines)
+    res = _least_squares(fun, x0, every, lo, hi, scale, names, e.starts, max_nfev, jac)
     fits = []
     seen = [(ctx, rows) for _, ctx, rows, _, _ in parts]
     for (ms, ctx, rows, _, _), x, (_, fh, *_) in zip(parts, vectors(res.x), heads, strict=True):
@@ -264,12 +273,11 @@ def _forward_steps(x: Array, lo: Array, hi: Array) -> Array:
 
 def _least_squares(  # type: ignore[no-untyped-def]
     fun, x0: Array, free: Mask, lo: Array, hi: Array, scale: Array, names: list[str],
-    starts: Sequence[dict[str, float]], max_nfev: int, jac=None, refines: Mask | None = None,
+    starts: Sequence[dict[str, float]], max_nfev: int, jac=None,
 ):  # fmt: skip
     """Trust-region reflective least squares of the ``free`` entries of ``x0``, from the
     best of ``x0`` and the alternative ``starts`` (each briefly tried first); ``jac``: the
-    Jacobian's own function (None: forward differences of every column). The entries that
-    ``refines`` marks are held at ``x0`` until the others have converged."""
+    Jacobian's own function (None: forward differences of every column)."""
 
     def solve(x_start: Array, nfev: int):  # type: ignore[no-untyped-def]
         return least_squares(
@@ -286,24 +294,6 @@ def _least_squares(  # type: ignore[no-untyped-def]
             diff_step=DIFF_STEP,
         )
 
-    held = np.zeros(len(x0), bool) if refines is None else np.asarray(refines, bool) & free
-    if held.any() and (free & ~held).any():
-        xt = x0[free]
-        keep = ~held[free]
-
-        def whole(xa: Array) -> Array:
-            out = xt.copy()
-            out[keep] = xa
-            return out
-
-        def jac_kept(xa: Array) -> Array:
-            return np.asarray(jac(whole(xa)))[:, keep]
-
-        first = _least_squares(
-            lambda xa: fun(whole(xa)), x0, free & ~held, lo, hi, scale[keep], names, starts,
-            max_nfev, None if jac is None else jac_kept,
-        )  # fmt: skip
-        return solve(whole(first.x), max_nfev)
     tries = [x0[free]]
     for st in starts:
         xs = x0.copy()

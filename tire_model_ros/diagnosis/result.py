@@ -232,7 +232,8 @@ def _effect(
             "their change is improvement), two-way cross-validation on whole sweeps"
         )
         parts += tr.notes
-    shown = [f"{n} = {params[n]:.4g} +- {unc.get(n, math.nan):.2g}" for n in m.pnames[:6]]
+    names = [n for n in m.pnames if n in params][:6]  # a guide's, handed over, is not
+    shown = [f"{n} = {params[n]:.4g} +- {unc.get(n, math.nan):.2g}" for n in names]
     parts.append("; ".join(shown))
     return Effect(m.word, m.concealed, ch, where, "; ".join(parts), params, unc, explained)
 

@@ -42,9 +42,10 @@ Index = npt.NDArray[np.int64]
 @dataclass(frozen=True)
 class Param:
     """One parameter: start, physical bounds and typical scale (for the optimiser); one that
-    is not ``fitted`` is set by the model's ``settle`` after the fit; one that ``refines``
-    is held at its start until the others are fitted, then fitted with them (a detail whose
-    freedom would lead the first descent astray)."""
+    is not ``fitted`` is set by the model's ``settle`` after the fit. A model whose detail
+    would lead a descent astray is fitted in two ``stage``s: a guide (1) is fitted in the
+    first only, then handed over (``EffectModel.handover``) and held; a refinement (2) is
+    held at its start in the first and fitted in the second; 0: in both."""
 
     name: str
     x0: float
@@ -52,7 +53,7 @@ class Param:
     hi: float
     scale: float
     fitted: bool = True
-    refines: bool = False
+    stage: int = 0
 
 
 class EffectModel:
@@ -123,6 +124,11 @@ class EffectModel:
         """``x`` with any parameter the fitted rows leave undetermined set to a neutral value
         (after the fit has converged); ``seen``: each fitted wheel's context and rows (every
         wheel of a car for a tyre effect, one otherwise)."""
+        return x
+
+    def handover(self, x: Array, ctx: Context) -> Array:
+        """``x`` after the first stage of a staged fit (``Param.stage``) with its guides'
+        shape handed to the refinements and the guides at their neutral values."""
         return x
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:

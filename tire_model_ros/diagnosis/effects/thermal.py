@@ -4,10 +4,10 @@ The grip of rubber has a temperature window (PHYSICS.md): it rises towards an op
 falls beyond it; stiffness falls with temperature. The .tir temperature extension carries both
 (INTERFACE.md): grip through TT*3, TT*4 (linear and quadratic in dT: a window is a pair of
 opposite sign), stiffness through TT*1 (falling; TT*2 is left as the file has it). A window
-may be skewed and flat beyond its optimum, which a quadratic cannot follow: the grip is also
-a table against the temperature (the effects file carries it). A recorded channel spans
-enough of the window to show its shape: there the table is the grip law, the .tir keeps TT*1.
-Concealed, the table refines the quadratic: fitted after it, from where it has led.
+may be skewed and flat beyond its optimum, which a quadratic cannot follow, and a quadratic
+fitted on some temperatures keeps rising beyond them: the grip is a table against the
+temperature (similarity method; the effects file carries it), the stiffness TT*1 of a
+recorded temperature, the carcass' own factor of a concealed one.
 Concealed, the tread temperature is the sum of two lumped nodes heated by the frictional
 power: the tread surface (seconds) on the carcass (minutes), each cooling back when the power
 stops, plus what is left of a pre-warmed start.
@@ -31,19 +31,22 @@ TAU_SLOW_S = (30.0, 900.0)  # carcass (PHYSICS.md: 1-5 min; up to 15 for a big t
 TT_ALL = tuple(f"TT{a}{i}" for a in "XY" for i in (1, 2, 3, 4))
 STIFFNESS_PER_K = 0.02  # bound of the carcass' stiffness loss [1/K] (PHYSICS.md: -10 % / 10 K)
 TT_SPAN = 2.0  # bound of a TT coefficient change (dT is about 1 over the convention's rise)
-# A temperature law keeps each factor (stiffness: 1 + TT*1 dT + TT*2 dT^2, grip: TT*3, TT*4)
-# within these over the temperatures it is applied to (PHYSICS.md: grip -10 % per +10 degC at
-# most, stiffness larger cold): beyond, a fitted quadratic is extrapolating, not physics.
+# A temperature law keeps each factor (stiffness: 1 + TT*1 dT + TT*2 dT^2, grip: TT*3, TT*4,
+# the guide's) within these over the temperatures it is applied to (PHYSICS.md: grip -10 % per
+# +10 degC at most, stiffness larger cold): beyond, a fitted quadratic is extrapolating.
 FACTOR_RANGE = (0.5, 1.5)
 PENALTY_WEIGHT = 300.0  # noise units per unit of factor outside its range
 RECORDED_T_MIN_STD_K = 0.5  # a recorded temperature that moves less tells nothing
 # A recorded temperature spans enough of the window to show its shape: the grip is a table at
 # these percentiles of the channel (the median's 1: the baseline's friction scaling is there)
 GRIP_KNOTS_PCT = (2.0, 25.0, 50.0, 75.0, 98.0)
+# Concealed, the temperature is the model's own, without a sensor's outliers: the table spans
+# all of it (a tyre brought hot is hotter than the rest of the session for a minute or two),
+# from a knot at ambient where it is 1, as the quadratic it takes over from
+HIDDEN_KNOTS_PCT = (0.0, 25.0, 50.0, 75.0, 100.0)
+# ... and fitted first with a quadratic friction scale in dT for a guide
+GUIDE = ("grip_per_dT", "grip_per_dT2")
 GRIP_KNOT_MIN_K = 0.1  # knots closer than this (a quantised channel) are spread apart
-# Concealed, the temperature's scale is the convention's: the table's knots at these rises
-# above ambient [K] (ambient's 1: the quadratic is 1 there too), beyond them the grip held
-HIDDEN_GRIP_RISES_K = (0.0, 20.0, 40.0, 60.0, 100.0)
 
 
 def _axes(ctx: Context) -> list[str]:
@@ -51,74 +54,70 @@ def _axes(ctx: Context) -> list[str]:
     return [axis for axis, key in (("X", "x"), ("Y", "y")) if ctx.informative[key]]
 
 
-# One TT coefficient of each for both directions (the rubber's: TTX3 = TTY3 ...; a direction
-# swept in a few sweeps borrows the other's).
-
-
-def _grip_params(ctx: Context) -> list[Param]:
-    """Grip TT3, TT4: a window (a quadratic)."""
-    if not _axes(ctx):
-        return []
-    return [Param("TT3", 0.0, -TT_SPAN, TT_SPAN, 0.1), Param("TT4", 0.0, -TT_SPAN, TT_SPAN, 0.1)]
-
-
 def _stiffness_params(ctx: Context) -> list[Param]:
-    """Stiffness TT1: falling with temperature (PHYSICS.md: monotonically, so linear, TT*2
-    left as the file has it)."""
+    """Stiffness TT1, one for both directions (the rubber's: TTX1 = TTY1; a direction swept
+    in a few sweeps borrows the other's): falling with temperature (PHYSICS.md:
+    monotonically, so linear, TT*2 left as the file has it)."""
     return [Param("TT1", 0.0, -TT_SPAN, 0.0, 0.1)] if _axes(ctx) else []
 
 
-def _knots(T: Array) -> Array:
-    """The grip table's knots [degC]: percentiles of the channel, strictly rising."""
-    k = np.percentile(T, GRIP_KNOTS_PCT)
+def _rising(knots: Array) -> Array:
+    """The grip table's knots [degC] strictly rising."""
+    k = np.array(knots, dtype=float)
     for i in range(1, len(k)):
         k[i] = max(k[i], k[i - 1] + GRIP_KNOT_MIN_K)
-    return np.round(k, 2)
+    return k
 
 
 class _TTModel(EffectModel):
-    """Shared: the grip table (its parameters last), the TT parameters, applied to TTX and
-    TTY additively to the file's, and the factors they make stay physical over the model's
-    temperatures."""
+    """Shared: the grip table (a friction scale at knots of the temperature, 1 at the
+    ``anchor``'s; its parameters last), the TT
+    parameters, applied to TTX and TTY additively to the file's, and the factors they make
+    stay physical over the model's temperatures."""
 
     word = "temperature"
-    knots: Array  # of the grip table [degC]
     anchor: int  # the knot whose friction scale is 1
+    n_knots: int
 
-    def grip_params(self, names: list[str], refines: bool = False) -> list[Param]:
-        """A friction scale at each knot but the anchor's, named ``names``."""
+    def knots(self, x: Array, ctx: Context) -> Array:
+        """The grip table's knots [degC]."""
+        raise NotImplementedError
+
+    def grip_params(self, names: list[str], stage: int = 0) -> list[Param]:
+        """A friction scale at each knot but the median's, named ``names``."""
         return [
-            Param(n, 1.0, *FACTOR_RANGE, 0.05, refines=refines)
+            Param(n, 1.0, *FACTOR_RANGE, 0.05, stage=stage)
             for i, n in enumerate(names)
             if i != self.anchor
         ]
 
     def grip(self, x: Array) -> tuple[float, ...]:
         """The friction scale at each knot (the grip parameters come last)."""
-        mu = [float(v) for v in x[len(x) - len(self.knots) + 1 :]]
+        mu = [float(v) for v in x[len(x) - self.n_knots + 1 :]]
         mu.insert(self.anchor, 1.0)
         return tuple(mu)
 
-    def grip_table(self, x: Array) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    def grip_table(self, x: Array, ctx: Context) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """What the effects file carries: the knots [degC] and the scale at each."""
-        return tuple(float(k) for k in self.knots), self.grip(x)
+        return tuple(float(k) for k in self.knots(x, ctx)), self.grip(x)
 
     def mu_scale(self, x: Array, ctx: Context) -> Array:
-        return np.interp(self.temperature(x, ctx), self.knots, self.grip(x))
+        return np.interp(self.temperature(x, ctx), self.knots(x, ctx), self.grip(x))
 
     def settle(self, x: Array, seen: Sequence[tuple[Context, Index]]) -> Array:
         """The grip held beyond the hottest fitted sample (PHYSICS.md: flat beyond the
         window): a knot whose neighbours below are all hotter is not seen by any fitted row,
         and would otherwise keep its start and bend the grip back to it."""
-        T_max = max(float(np.max(self.temperature(x, ctx)[rows])) for ctx, rows in seen)
+        ctx = seen[0][0]  # a wheel's own state: one wheel
+        T_max = max(float(np.max(self.temperature(x, c)[rows])) for c, rows in seen)
+        knots = self.knots(x, ctx)
         x = np.array(x, dtype=float)
-        first = len(x) - len(self.knots) + 1  # the grip parameters come last
         mu = list(self.grip(x))
-        for i in range(1, len(self.knots)):
-            if self.knots[i - 1] >= T_max:
+        for i in range(1, len(knots)):
+            if knots[i - 1] >= T_max:
                 mu[i] = mu[i - 1]
         del mu[self.anchor]
-        x[first:] = mu
+        x[len(x) - len(mu) :] = mu
         return x
 
     def coef(self, x: Array, ctx: Context) -> dict[str, float]:
@@ -152,10 +151,13 @@ class _TTModel(EffectModel):
 
 
 class HiddenThermal(_TTModel):
-    """Concealed heating: the grip follows T = T_amb + fast + share * slow through TT*3 and
-    TT*4, refined by a table at :data:`HIDDEN_GRIP_RISES_K` (the tread surface on the
-    carcass, heated by k P_fric; the carcass node starts at a pre-warmed T0), the slip
-    stiffness the carcass alone: a factor 1 + c * slow [1/K].
+    """Concealed heating: the grip follows T = T_amb + fast + share * slow (the tread surface
+    on the carcass, heated by k P_fric; the carcass node starts at a pre-warmed T0) through
+    the grip table at percentiles of T, the slip stiffness the carcass alone: a factor
+    1 + c * slow [1/K]. The table's freedom would lead the nodes astray from a start: they are
+    fitted first with a quadratic grip factor (:data:`GUIDE`), whose shape the table then
+    takes over (a quadratic keeps rising beyond the temperatures it was fitted on, the table
+    holds).
 
     ``mode`` "physical" is the model; "memoryless" (T follows the power at once), "scrambled"
     (the same nodes driven by a block-shuffled power: the tread's seconds tested), "reversed"
@@ -166,6 +168,7 @@ class HiddenThermal(_TTModel):
     stable_in_time = False  # the first half sees the tyre warm up, the second hot
 
     concealed = True
+    anchor, n_knots = 0, 1 + len(HIDDEN_KNOTS_PCT)
 
     def __init__(self, ctx: Context, mode: str = "physical"):
         self.mode = mode
@@ -190,10 +193,10 @@ class HiddenThermal(_TTModel):
             {"tau_slow_s": 60.0, "slow_share": 2.0},
             {"T0_K": 30.0},  # a tyre brought warm: it cools before it heats
         ]
-        self.knots, self.anchor = ctx.T_amb + np.asarray(HIDDEN_GRIP_RISES_K), 0
-        names = [f"mu_at_rise_{r:g}_K" for r in HIDDEN_GRIP_RISES_K]
-        table = self.grip_params(names, refines=True) if _axes(ctx) else []
-        super().__init__([*head, *stiff, *_grip_params(ctx), *table], starts if head else [])
+        guide = [Param(k, 0.0, -TT_SPAN, TT_SPAN, 0.1, stage=1) for k in GUIDE]
+        names = ["mu_at_T_amb", *(f"mu_at_T_p{q:03.0f}" for q in HIDDEN_KNOTS_PCT)]
+        table = self.grip_params(names, stage=2)
+        super().__init__([*head, *stiff, *guide, *table], starts if head else [])
         self.n_nodes = len(head)  # the parameters first: what the nodes depend on
 
     @classmethod
@@ -228,6 +231,42 @@ class HiddenThermal(_TTModel):
         slow = first_order(k * v["slow_share"] * P, w.t, v["tau_slow_s"], v["T0_K"])
         return fast, slow
 
+    def knots(self, x: Array, ctx: Context) -> Array:
+        """Ambient, and percentiles of the hidden temperature over the session."""
+
+        def make() -> Array:
+            T = np.percentile(self.temperature(x, ctx), HIDDEN_KNOTS_PCT)
+            return _rising(np.concatenate([[ctx.T_amb], T]))
+
+        return self.remembered("knots", ctx, self._node_key(x), make)  # type: ignore[no-any-return]
+
+    def guide(self, x: Array, T: Array, ctx: Context) -> Array:
+        """The quadratic grip factor at ``T`` [degC] (on the TT convention's dT)."""
+        dT = (T - ctx.T_amb) / max(ctx.T_amb, 1e-6)
+        v = self.values(x)
+        return 1.0 + v[GUIDE[0]] * dT + v[GUIDE[1]] * dT**2
+
+    def mu_scale(self, x: Array, ctx: Context) -> Array:
+        return self.guide(x, self.temperature(x, ctx), ctx) * super().mu_scale(x, ctx)
+
+    def penalty(self, x: Array, ctx: Context) -> Array:
+        """The quadratic's factor within range over the temperatures it is applied to."""
+        T = self.temperature(x, ctx)
+        q = self.guide(x, np.linspace(float(T.min()), float(T.max()), 9), ctx)
+        lo, hi = FACTOR_RANGE
+        out = PENALTY_WEIGHT * (np.maximum(lo - q, 0.0) + np.maximum(q - hi, 0.0))
+        return np.concatenate([super().penalty(x, ctx), out])
+
+    def handover(self, x: Array, ctx: Context) -> Array:
+        """The table takes the quadratic's grip at its knots (1 at ambient for both: the
+        same friction scale there, linear between), the quadratic returns to none."""
+        q = self.guide(x, self.knots(x, ctx), ctx)
+        mu = np.clip(np.asarray(self.grip(x)) * q, *FACTOR_RANGE)
+        x = np.array(x, dtype=float)
+        x[[self.pnames.index(k) for k in GUIDE]] = 0.0
+        x[len(x) - len(mu) + 1 :] = np.delete(mu, self.anchor)
+        return x
+
     def temperature(self, x: Array, ctx: Context) -> Array:
         """The hidden tread temperature [degC] that the grip follows."""
 
@@ -254,8 +293,14 @@ class HiddenThermal(_TTModel):
         return {"T": self.temperature(x, ctx)}
 
     def reported(self, x: Array, ctx: Context) -> dict[str, float]:
-        """With the convention that sets the hidden scale: K per W of the nodes, ambient."""
-        return {**self.values(x), "gain_K_per_W": ctx.k_thermal, "T_amb_C": ctx.T_amb}
+        """With the convention that sets the hidden scale (K per W of the nodes, ambient) and
+        the grip table's knots; without the guide, handed over to the table."""
+        v = {k: val for k, val in self.values(x).items() if k not in GUIDE}
+        knots = self.knots(x, ctx)[1:]
+        v.update(
+            {f"T_p{q:03.0f}_C": float(k) for q, k in zip(HIDDEN_KNOTS_PCT, knots, strict=True)}
+        )
+        return {**v, "gain_K_per_W": ctx.k_thermal, "T_amb_C": ctx.T_amb}
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         v = self.values(x)
@@ -265,7 +310,7 @@ class HiddenThermal(_TTModel):
             "thermal_slow": Node(v["tau_slow_s"], ctx.k_thermal * v["slow_share"]),
             "thermal_slow_start_K": v["T0_K"],
             "stiffness_per_K": v["stiffness_per_K"],
-            "grip_table": self.grip_table(x),
+            "grip_table": self.grip_table(x, ctx),
         }
 
 
@@ -287,6 +332,7 @@ class RecordedThermal(_TTModel):
     stable_in_time = False  # each half sees its own range of temperature
 
     concealed = False
+    anchor, n_knots = GRIP_KNOTS_PCT.index(50.0), len(GRIP_KNOTS_PCT)
 
     def __init__(self, ctx: Context, mode: str = "recorded"):
         self.mode = mode
@@ -306,13 +352,17 @@ class RecordedThermal(_TTModel):
             Param("tau_T_s", 0.0, 0.0, 600.0, 5.0),  # the tread's bulk lags the sensor's surface
             Param("T_surface_weight", 1.0, 0.0, 1.0, 0.2),  # what the grip feels of each
         ]
-        self.knots, self.anchor = _knots(T), GRIP_KNOTS_PCT.index(50.0)
-        grip = self.grip_params([f"mu_at_{k:.2f}_C" for k in self.knots])  # >= 0.1 K apart
+        self._knots = np.round(_rising(np.percentile(T, GRIP_KNOTS_PCT)), 2)
+        grip = self.grip_params([f"mu_at_{k:.2f}_C" for k in self._knots])  # >= 0.1 K apart
         starts = [{"tau_T_s": 120.0, "T_surface_weight": 0.5}]
         super().__init__([*lag, *_stiffness_params(ctx), *grip], starts)
 
     def reference_C(self, ctx: Context) -> float:
         return self.ref
+
+    def knots(self, x: Array, ctx: Context) -> Array:
+        """At percentiles of the channel."""
+        return self._knots
 
     def coef(self, x: Array, ctx: Context) -> dict[str, float]:
         out = super().coef(x, ctx)
@@ -345,7 +395,7 @@ class RecordedThermal(_TTModel):
         return {
             "T_lag_s": float(x[0]),
             "T_surface_weight": float(x[1]),
-            "grip_table": self.grip_table(x),
+            "grip_table": self.grip_table(x, ctx),
         }
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
