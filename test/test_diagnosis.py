@@ -268,6 +268,26 @@ def test_a_pre_warmed_sealed_tyre_cooling_back_is_named_pressure(model):
     assert first.parameters.get("gas_T0_K", 0.0) > 5.0, first.parameters
 
 
+def _made_by_hidden_thermal(model, truth: dict[str, float]):
+    """A hidden thermal model of a noisy session's first wheel, and that wheel's forces made
+    by it at ``truth`` (its other parameters at their starts) with noise: (model, context,
+    the true parameter vector)."""
+    from tire_model_ros.diagnosis.effects.thermal import HiddenThermal
+    from tire_model_ros.diagnosis.predict import predict
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"noise": True})
+    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
+    hidden = HiddenThermal(ctx)
+    x = np.array([truth.get(k, v) for k, v in zip(hidden.pnames, hidden.x0, strict=True)])
+    rows = np.arange(len(ctx.wheel.t))
+    rng = np.random.default_rng(1)
+    for ch, F in predict([hidden], x, ctx, rows).items():
+        if ch in ctx.channels:
+            ctx.wheel.meas[ch][:] = F + rng.normal(0.0, ctx.sigma[ch], len(rows))
+    return hidden, ctx, x
+
+
 def test_a_carcass_brought_hot_to_the_rig_is_recovered_with_its_warm_start(model):
     """A tyre brought to the rig hot (a blanket, a previous run) starts its carcass far above
     ambient and cools while the tread heats: forces made by the hidden thermal model itself
@@ -275,22 +295,11 @@ def test_a_carcass_brought_hot_to_the_rig_is_recovered_with_its_warm_start(model
     0.53 at the hottest), with noise; the fit from the effect's own starts recovers the start
     and the grip, which the table takes over from the quadratic (with a 60 K bound it stopped
     at the bound, 110 times the noise's cost)."""
-    from tire_model_ros.diagnosis.effects.thermal import HiddenThermal
     from tire_model_ros.diagnosis.fitting import fit
-    from tire_model_ros.diagnosis.predict import predict
-    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
 
-    wheels, _ = _session(model, {"noise": True})
-    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
-    hidden = HiddenThermal(ctx)
-    truth = dict(zip(hidden.pnames, hidden.x0, strict=True))
-    truth.update(tau_fast_s=3.0, tau_slow_s=200.0, slow_share=1.0, T0_K=75.0, grip_per_dT=-0.15)
-    x = np.array([truth[k] for k in hidden.pnames])
+    truth = dict(tau_fast_s=3.0, tau_slow_s=200.0, slow_share=1.0, T0_K=75.0, grip_per_dT=-0.15)
+    hidden, ctx, _ = _made_by_hidden_thermal(model, truth)
     rows = np.arange(len(ctx.wheel.t))
-    rng = np.random.default_rng(1)
-    for ch, F in predict([hidden], x, ctx, rows).items():
-        if ch in ctx.channels:
-            ctx.wheel.meas[ch][:] = F + rng.normal(0.0, ctx.sigma[ch], len(rows))
     f = fit([hidden], ctx, rows)
     got = dict(zip(hidden.pnames, f.x, strict=True))
     assert got["T0_K"] == pytest.approx(75.0, abs=3.0), got
@@ -308,23 +317,12 @@ def test_a_window_flat_beyond_its_optimum_is_followed_by_the_hidden_grip_table(m
     gone. The table holds the grip beyond the hottest fitted sample (a quadratic keeps
     rising: seed 30 car multi2_b, held-out sweeps 20 K hotter than any fitted one were tens
     of times the noise worse); the effects file carries the table."""
-    from tire_model_ros.diagnosis.effects.thermal import HiddenThermal
     from tire_model_ros.diagnosis.fitting import fit
-    from tire_model_ros.diagnosis.predict import predict
-    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
 
-    wheels, _ = _session(model, {"noise": True})
-    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
-    hidden = HiddenThermal(ctx)
-    truth = dict(zip(hidden.pnames, hidden.x0, strict=True))
-    truth.update(tau_fast_s=3.0, tau_slow_s=150.0, slow_share=2.0)
+    truth = dict(tau_fast_s=3.0, tau_slow_s=150.0, slow_share=2.0)
     truth.update({f"mu_at_T_p{q:03d}": 1.08 for q in (25, 50, 75, 100)})
-    x = np.array([truth[k] for k in hidden.pnames])
+    hidden, ctx, _ = _made_by_hidden_thermal(model, truth)
     rows = np.arange(len(ctx.wheel.t))
-    rng = np.random.default_rng(1)
-    for ch, F in predict([hidden], x, ctx, rows).items():
-        if ch in ctx.channels:
-            ctx.wheel.meas[ch][:] = F + rng.normal(0.0, ctx.sigma[ch], len(rows))
     only_quadratic = np.array([p.stage < 2 for p in hidden.params])
     f_quad = fit([hidden], ctx, rows, free=only_quadratic)
     f = fit([hidden], ctx, rows)
