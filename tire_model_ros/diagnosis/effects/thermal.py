@@ -71,9 +71,8 @@ def _rising(knots: Array) -> Array:
 
 class _TTModel(EffectModel):
     """Shared: the grip table (a friction scale at knots of the temperature, 1 at the
-    ``anchor``'s; its parameters last), the TT
-    parameters, applied to TTX and TTY additively to the file's, and the factors they make
-    stay physical over the model's temperatures."""
+    ``anchor``'s; its parameters last), the TT parameters, applied to TTX and TTY additively
+    to the file's, and the factors they make stay physical over the model's temperatures."""
 
     word = "temperature"
     anchor: int  # the knot whose friction scale is 1
@@ -84,7 +83,7 @@ class _TTModel(EffectModel):
         raise NotImplementedError
 
     def grip_params(self, names: list[str], stage: int = 0) -> list[Param]:
-        """A friction scale at each knot but the median's, named ``names``."""
+        """A friction scale at each knot but the anchor's, named ``names``."""
         return [
             Param(n, 1.0, *FACTOR_RANGE, 0.05, stage=stage)
             for i, n in enumerate(names)
