@@ -61,6 +61,11 @@ def _stiffness_params(ctx: Context) -> list[Param]:
     return [Param("TT1", 0.0, -TT_SPAN, 0.0, 0.1)] if _axes(ctx) else []
 
 
+def _dT(T: Array, ref_C: float) -> Array:
+    """The TT convention's normalised increment (T - ref)/ref (INTERFACE.md)."""
+    return (T - ref_C) / max(ref_C, 1e-6)
+
+
 def _rising(knots: Array) -> Array:
     """The grip table's knots [degC] strictly rising."""
     k = np.array(knots, dtype=float)
@@ -110,13 +115,16 @@ class _TTModel(EffectModel):
         ctx = seen[0][0]  # a wheel's own state: one wheel
         T_max = max(float(np.max(self.temperature(x, c)[rows])) for c, rows in seen)
         knots = self.knots(x, ctx)
-        x = np.array(x, dtype=float)
         mu = list(self.grip(x))
         for i in range(1, len(knots)):
             if knots[i - 1] >= T_max:
                 mu[i] = mu[i - 1]
-        del mu[self.anchor]
-        x[len(x) - len(mu) :] = mu
+        return self.with_grip(x, mu)
+
+    def with_grip(self, x: Array, mu: Sequence[float] | Array) -> Array:
+        """``x`` with the friction scale ``mu`` at each knot (the anchor's left at 1)."""
+        x = np.array(x, dtype=float)
+        x[len(x) - self.n_knots + 1 :] = np.delete(np.asarray(mu, dtype=float), self.anchor)
         return x
 
     def coef(self, x: Array, ctx: Context) -> dict[str, float]:
@@ -135,17 +143,22 @@ class _TTModel(EffectModel):
         """The temperature the TT terms are relative to: NOMTEMP."""
         return ctx.T_amb
 
-    def penalty(self, x: Array, ctx: Context) -> Array:
-        T, T0 = self.temperature(x, ctx), self.reference_C(ctx)
-        dT = (np.linspace(float(T.min()), float(T.max()), 9) - T0) / max(T0, 1e-6)
+    def factors(self, x: Array, ctx: Context, dT: Array) -> list[Array]:
+        """The temperature laws' factors at ``dT``: the file's TT terms with the fitted ones
+        (stiffness TT*1/TT*2, grip TT*3/TT*4, per direction)."""
         c = {**ctx.base, **self.coef(x, ctx)}
         out = []
         for axis in _axes(ctx):
             for lin, quad in ((1, 2), (3, 4)):
                 a, b = c.get(f"TT{axis}{lin}", 0.0), c.get(f"TT{axis}{quad}", 0.0)
-                f = 1.0 + a * dT + b * dT**2
-                lo, hi = FACTOR_RANGE
-                out.append(np.maximum(lo - f, 0.0) + np.maximum(f - hi, 0.0))
+                out.append(1.0 + a * dT + b * dT**2)
+        return out
+
+    def penalty(self, x: Array, ctx: Context) -> Array:
+        T = self.temperature(x, ctx)
+        dT = _dT(np.linspace(float(T.min()), float(T.max()), 9), self.reference_C(ctx))
+        lo, hi = FACTOR_RANGE
+        out = [np.maximum(lo - f, 0.0) + np.maximum(f - hi, 0.0) for f in self.factors(x, ctx, dT)]
         return PENALTY_WEIGHT * np.concatenate(out) if out else np.zeros(0)
 
 
@@ -239,31 +252,25 @@ class HiddenThermal(_TTModel):
 
         return self.remembered("knots", ctx, self._node_key(x), make)  # type: ignore[no-any-return]
 
-    def guide(self, x: Array, T: Array, ctx: Context) -> Array:
-        """The quadratic grip factor at ``T`` [degC] (on the TT convention's dT)."""
-        dT = (T - ctx.T_amb) / max(ctx.T_amb, 1e-6)
+    def guide(self, x: Array, dT: Array) -> Array:
+        """The quadratic grip factor at ``dT`` (the TT convention's, from ambient)."""
         v = self.values(x)
         return 1.0 + v[GUIDE[0]] * dT + v[GUIDE[1]] * dT**2
 
     def mu_scale(self, x: Array, ctx: Context) -> Array:
-        return self.guide(x, self.temperature(x, ctx), ctx) * super().mu_scale(x, ctx)
+        dT = _dT(self.temperature(x, ctx), ctx.T_amb)
+        return self.guide(x, dT) * super().mu_scale(x, ctx)
 
-    def penalty(self, x: Array, ctx: Context) -> Array:
-        """The quadratic's factor within range over the temperatures it is applied to."""
-        T = self.temperature(x, ctx)
-        q = self.guide(x, np.linspace(float(T.min()), float(T.max()), 9), ctx)
-        lo, hi = FACTOR_RANGE
-        out = PENALTY_WEIGHT * (np.maximum(lo - q, 0.0) + np.maximum(q - hi, 0.0))
-        return np.concatenate([super().penalty(x, ctx), out])
+    def factors(self, x: Array, ctx: Context, dT: Array) -> list[Array]:
+        """With the guide's, kept in range too over the temperatures it is applied to."""
+        return [*super().factors(x, ctx, dT), self.guide(x, dT)]
 
     def handover(self, x: Array, ctx: Context) -> Array:
         """The table takes the quadratic's grip at its knots (1 at ambient for both: the
         same friction scale there, linear between), the quadratic returns to none."""
-        q = self.guide(x, self.knots(x, ctx), ctx)
-        mu = np.clip(np.asarray(self.grip(x)) * q, *FACTOR_RANGE)
-        x = np.array(x, dtype=float)
+        q = self.guide(x, _dT(self.knots(x, ctx), ctx.T_amb))
+        x = self.with_grip(x, np.clip(np.asarray(self.grip(x)) * q, *FACTOR_RANGE))
         x[[self.pnames.index(k) for k in GUIDE]] = 0.0
-        x[len(x) - len(mu) + 1 :] = np.delete(mu, self.anchor)
         return x
 
     def temperature(self, x: Array, ctx: Context) -> Array:
