@@ -309,6 +309,45 @@ def test_a_carcass_brought_hot_to_the_rig_is_recovered_with_its_warm_start(model
     assert 2.0 * f.cost / f.m < 2.0  # the noise's own cost per residual is about 1
 
 
+def test_a_tyre_cooling_unheated_by_the_power_is_a_change_in_time_not_a_temperature(model):
+    """Forces made by the hidden thermal model with its carcass 60 K up at the start, cooling
+    with 300 s, and no heat from the power put in (its stiffness rising 24 % as it cools, the
+    grip as the file's): its plain-time control (a ramp and a start's cooling, the same law)
+    predicts the same, so the data show a change in time and not heat, and the engine refuses
+    it (brush multi2_b s32: a leak and wear took this form). Heated by the power as well,
+    the same tyre beats that control."""
+    from tire_model_ros.diagnosis.effects import Scaling
+    from tire_model_ros.diagnosis.search import Joint, _controls, cross_validate, joint_add
+
+    def controls(truth: dict[str, float]) -> tuple[bool, str]:
+        hidden, ctx, _ = _made_by_hidden_thermal(model, truth)
+        p = ctx.wheel.prefix
+        base = Joint({p: cross_validate([Scaling(ctx)], ctx, [None, None])})
+        t = joint_add(base, ("HiddenThermal", hidden.label), {p: hidden})
+        return _controls(t, base)
+
+    cooling = dict(slow_share=0.0, T0_K=60.0, tau_slow_s=300.0, stiffness_per_K=-0.004)
+    ok, note = controls(cooling)
+    assert not ok and "a change in time, its cause not shown" in note, note
+    ok, note = controls({**cooling, "slow_share": 1.0, "grip_per_dT": -0.15})
+    assert ok and "beats its controls" in note, note
+
+
+def test_wear_only_ever_takes_grip_away(model):
+    """Wear is an irreversible loss with the work done (INTERFACE/issue: never a gain, which
+    is a warming tyre's below its optimum): its loss is bounded at zero from below."""
+    from tire_model_ros.diagnosis.effects.friction import Wear
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"noise": True})
+    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
+    wear = Wear(ctx)
+    (loss,) = wear.params
+    assert loss.lo == 0.0 and loss.hi > 0.0
+    assert np.all(wear.mu_scale(np.array([loss.lo]), ctx) == 1.0)
+    assert np.all(np.diff(wear.mu_scale(np.array([loss.hi]), ctx)) <= 0.0)
+
+
 def test_a_window_flat_beyond_its_optimum_is_followed_by_the_hidden_grip_table(model):
     """Concealed heating of a tyre whose grip rises 8 % over its coldest quarter, then holds
     (a skewed window, flat beyond: PHYSICS.md), which a quadratic cannot follow: fitted first

@@ -460,7 +460,10 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
 
     A control that predicts what the effect predicts (a carcass heated over minutes by a steady
     programme's power rises the same played forwards or backwards) cannot test it: it is
-    passed over, and said so.
+    passed over, and said so; unless it is a plain function of time and the effect is told
+    only by its drive: then the data show a change in time and nothing of the cause the
+    effect names (a tyre cooling from a warm start, unheated by the power put in, for a leak,
+    brush multi2_b s32).
     """
     prefixes = [n.ctx.wheel.prefix for _, n, _ in _new(t, cur)]
     if not prefixes:
@@ -470,6 +473,10 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
     for c, ctrl in _alternatives(t, cur, lambda m, ctx: m.controls(ctx)):
         apart = _changed(t, ctrl, prefixes) / done
         rms = ctrl.score.rms
+        if apart < ev.CONTROL_RESOLVES and c.of_time and _added(t).shown_by_drive:
+            return False, (f"predicts what {c.label} does ({t.score.rms:.3f} vs "
+                           f"{rms:.3f}, {apart:.2f} apart): a change in time, its cause not "
+                           "shown")  # fmt: skip
         if apart < ev.CONTROL_RESOLVES:
             out.append(f"{c.label} {rms:.3f} (the same forces, {apart:.2f} apart: no test)")
             continue
@@ -482,6 +489,11 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
         return True, ""
     verdict = "beats its controls" if tested else "its controls cannot test it (none tested)"
     return True, f"{verdict}: {', '.join(out)} vs {t.score.rms:.3f} (held-out RMS, noise units)"
+
+
+def _added(t: Joint) -> EffectModel:
+    """The model of the effect ``t`` added (one wheel's: the same class on all)."""
+    return next(iter(t.effect(t.keys[-1]).values()))
 
 
 def _rivals(t: Joint, cur: Joint) -> tuple[bool, str]:

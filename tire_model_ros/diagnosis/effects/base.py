@@ -69,6 +69,13 @@ class EffectModel:
     # a car, one set is fitted to all of them (:func:`shared`), so that a wheel that reaches
     # the same conditions without the effect tells against it.
     tyre: ClassVar[bool] = False
+    # A plain function of time, with no drive (a trend) ...
+    of_time = False
+    # ... and a model whose word only its drive tells (its law in the forces is free, as a
+    # hidden temperature's grip table and stiffness): such a control predicting what it
+    # predicts shows a change in time, not the cause it names. A model whose law is the
+    # file's (a pressure through its pressure terms) is told by that law, whatever drives it.
+    shown_by_drive: ClassVar[bool] = False
 
     def __init__(self, params: list[Param], starts: list[dict[str, float]] | None = None):
         self.params = params

@@ -96,14 +96,15 @@ class SpeedTable(EffectModel):
 
 
 class Wear(EffectModel):
-    """Friction falling with the cumulative frictional work, never recovering (wear)."""
+    """Friction falling with the cumulative frictional work, never recovering (wear: an
+    irreversible loss, never a gain)."""
 
     stable_in_time = False  # wear grows as the work does: each half sees its own part of it
     word = "drift"
     label = "friction falls with cumulative frictional work (wear)"
 
     def __init__(self, ctx: Context):
-        super().__init__([Param("loss_per_session", 0.0, -0.6, 0.6, 0.02)])
+        super().__init__([Param("loss_per_session", 0.02, 0.0, 0.6, 0.02)])
 
     @classmethod
     def propose(cls, ctx: Context) -> list[EffectModel]:
@@ -120,6 +121,7 @@ class Trend(EffectModel):
     """Friction changing linearly in time (a plain trend; also the control of a leak)."""
 
     stable_in_time = False  # a trend's course over the session need not be a line
+    of_time = True
     word = "drift"
     label = "friction changes linearly in time (plain trend)"
 

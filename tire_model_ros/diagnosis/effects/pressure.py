@@ -52,8 +52,9 @@ class SealedGas(EffectModel):
     Where the tread temperature is recorded, it drives the gas node instead of the power (a
     recorded channel is a thermometer: the gas follows the tread with a lag, heating less).
     ``mode`` "physical" is the model; "memoryless", "reversed" (the drive played backwards:
-    a node of minutes is not tested by shuffling seconds) and "trend" (the pressure a ramp in
-    time of either sign) are its controls.
+    a node of minutes is not tested by shuffling seconds) and "trend" (the gas a ramp in time
+    of either sign, and the pre-warmed start's cooling that the model has without any power)
+    are its controls.
     """
 
     stable_in_time = False  # the first half sees the gas warm up, the second warm
@@ -63,11 +64,12 @@ class SealedGas(EffectModel):
 
     def __init__(self, ctx: Context, mode: str = "physical"):
         self.mode = mode
+        self.of_time = mode == "trend"
         self.label = {
             "physical": "hidden gas node heated by frictional power, gas law, file's terms",
             "memoryless": "control: gas temperature follows frictional power at once",
             "reversed": "control: the gas node driven by the power played backwards",
-            "trend": "control: pressure a plain trend in time",
+            "trend": "control: gas temperature a plain function of time",
         }[mode]
         self.by_T = ctx.wheel.inputs["T"] is not None
         gain = (
@@ -75,17 +77,17 @@ class SealedGas(EffectModel):
             if self.by_T
             else Param("gain_gas_K_per_kW", 2.0, 0.0, 300.0, 2.0)
         )
+        cooling = [
+            Param("tau_gas_s", 120.0, 20.0, 1800.0, 60.0),
+            Param("gas_T0_K", 0.0, 0.0, 60.0, 10.0),  # a pre-warmed start (0: at ambient)
+        ]
         params = {
-            "physical": [
-                Param("tau_gas_s", 120.0, 20.0, 1800.0, 60.0),
-                Param("gas_T0_K", 0.0, 0.0, 60.0, 10.0),  # a pre-warmed start (0: at ambient)
-                gain,
-            ],
+            "physical": [*cooling, gain],
             "memoryless": [gain],
-            "trend": [Param("rise_per_session", 0.0, -0.5, 0.5, 0.02)],
+            "trend": [*cooling, Param("ramp_K", 0.0, -60.0, 60.0, 5.0)],
         }
         params["reversed"] = params["physical"]
-        starts = [{"tau_gas_s": 30.0}, {"tau_gas_s": 600.0}] if mode != "trend" else []
+        starts = [{"tau_gas_s": 30.0}, {"tau_gas_s": 600.0}]
         super().__init__(params[mode], starts if mode != "memoryless" else [])
 
     @classmethod
@@ -115,8 +117,10 @@ class SealedGas(EffectModel):
 
     def _pressure(self, x: Array, ctx: Context) -> Array:
         w = ctx.wheel
-        if self.mode == "trend":
-            return ctx.p_nom * (1.0 + float(x[0]) * w.t / ctx.t_end)
+        if self.mode == "trend":  # the ramp, and what the start's cooling adds to it
+            u = float(x[2]) * w.t / ctx.t_end
+            rise = u + first_order(0.0 * u, w.t, float(x[0]), float(x[1]))
+            return np.asarray(gas_pressure_Pa(ctx.p_nom, rise, ctx.T_amb), dtype=np.float64)
         u = self.drive(x, ctx)
         u = u[::-1] if self.mode == "reversed" else u
         rise = u if self.mode == "memoryless" else first_order(u, w.t, float(x[0]), float(x[1]))

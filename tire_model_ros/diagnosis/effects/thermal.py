@@ -173,17 +173,22 @@ class HiddenThermal(_TTModel):
 
     ``mode`` "physical" is the model; "memoryless" (T follows the power at once), "scrambled"
     (the same nodes driven by a block-shuffled power: the tread's seconds tested), "reversed"
-    (the power played backwards: the carcass' minutes tested) and "trend" (T a plain ramp in
-    time) are its controls.
+    (the power played backwards: the carcass' minutes tested) and "trend" (T a plain function
+    of time: a ramp, and the pre-warmed start's cooling that the model has without any power)
+    are its controls. The trend must have that cooling: a model left with it alone (no power
+    heating, a flat table) is a decay in time, which mimics a slow leak's stiffness change
+    (brush multi2_b s32: a leak and wear named temperature against a ramp-only control).
     """
 
     stable_in_time = False  # the first half sees the tyre warm up, the second hot
 
     concealed = True
+    shown_by_drive = True
     anchor, n_knots = 0, 1 + len(HIDDEN_KNOTS_PCT)
 
     def __init__(self, ctx: Context, mode: str = "physical"):
         self.mode = mode
+        self.of_time = mode == "trend"
         self.label = {
             "physical": "hidden tread and carcass nodes heated by frictional power",
             "memoryless": "control: temperature follows frictional power at once",
@@ -197,7 +202,9 @@ class HiddenThermal(_TTModel):
             Param("slow_share", 1.0, 0.0, 20.0, 0.5),
             Param("T0_K", 0.0, 0.0, 90.0, 10.0),  # a pre-warmed start (0: at ambient)
         ]
-        head = nodes if mode in ("physical", "scrambled", "reversed") else []
+        cooling = [nodes[1], nodes[3]]
+        ramp = [Param("ramp_K", THERMAL_RISE_REF_K, 0.0, 90.0, 10.0)]
+        head = {"memoryless": [], "trend": [*cooling, *ramp]}.get(mode, nodes)
         stiff = [Param("stiffness_per_K", 0.0, -STIFFNESS_PER_K, 0.0, 0.002)]
         starts = [
             {"tau_fast_s": 1.0},
@@ -208,7 +215,8 @@ class HiddenThermal(_TTModel):
         guide = [Param(k, 0.0, -TT_SPAN, TT_SPAN, 0.1, stage=1) for k in GUIDE]
         names = ["mu_at_T_amb", *(f"mu_at_T_p{q:03.0f}" for q in HIDDEN_KNOTS_PCT)]
         table = self.grip_params(names, stage=2)
-        super().__init__([*head, *stiff, *guide, *table], starts if head else [])
+        starts = [st for st in starts if set(st) <= {p.name for p in head}]
+        super().__init__([*head, *stiff, *guide, *table], starts)
         self.n_nodes = len(head)  # the parameters first: what the nodes depend on
 
     @classmethod
@@ -234,11 +242,12 @@ class HiddenThermal(_TTModel):
         w, k = ctx.wheel, ctx.k_thermal
         if self.mode == "memoryless":
             return k * w.P, k * w.P
-        if self.mode == "trend":
-            ramp = THERMAL_RISE_REF_K * w.t / ctx.t_end
-            return ramp, ramp
-        P = {"scrambled": w.P[w.scramble], "reversed": w.P[::-1]}.get(self.mode, w.P)
         v = self.values(x)
+        if self.mode == "trend":
+            ramp = v["ramp_K"] * w.t / ctx.t_end
+            cooling = first_order(0.0 * ramp, w.t, v["tau_slow_s"], v["T0_K"])
+            return np.zeros_like(ramp), ramp + cooling
+        P = {"scrambled": w.P[w.scramble], "reversed": w.P[::-1]}.get(self.mode, w.P)
         fast = first_order(k * P, w.t, v["tau_fast_s"])
         slow = first_order(k * v["slow_share"] * P, w.t, v["tau_slow_s"], v["T0_K"])
         return fast, slow
@@ -278,7 +287,7 @@ class HiddenThermal(_TTModel):
 
         def make() -> Array:
             fast, slow = self.nodes(x, ctx)
-            return ctx.T_amb + (fast if self.mode in ("memoryless", "trend") else fast + slow)
+            return ctx.T_amb + (fast if self.mode == "memoryless" else fast + slow)
 
         return self.remembered("T", ctx, self._node_key(x), make)  # type: ignore[no-any-return]
 
