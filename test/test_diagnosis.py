@@ -342,10 +342,17 @@ def test_wear_only_ever_takes_grip_away(model):
     wheels, _ = _session(model, {"noise": True})
     ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
     wear = Wear(ctx)
-    (loss,) = wear.params
-    assert loss.lo == 0.0 and loss.hi > 0.0
-    assert np.all(wear.mu_scale(np.array([loss.lo]), ctx) == 1.0)
-    assert np.all(np.diff(wear.mu_scale(np.array([loss.hi]), ctx)) <= 0.0)
+    loss, stiffening = wear.params
+    assert loss.lo == 0.0 and loss.hi > 0.0 and stiffening.lo == 0.0
+    assert np.all(wear.mu_scale(np.array([loss.lo, 1.0]), ctx) == 1.0)
+    assert np.all(np.diff(wear.mu_scale(np.array([loss.hi, 1.0]), ctx)) <= 0.0)
+    # the slip stiffness rises with the grip lost, in the proportion fitted
+    w = ctx.wheel
+    inp = {"kappa": np.full(len(w.t), 0.01), "alpha": np.full(len(w.t), 0.02)}
+    wear.inputs(np.array([0.1, 2.0]), ctx, inp)
+    gain = inp["kappa"] / 0.01 - 1.0
+    np.testing.assert_allclose(gain, 2.0 * 0.1 * w.E / ctx.E_ref)
+    assert gain[-1] > 0.0 and np.all(np.diff(gain) >= 0.0)
 
 
 def test_a_window_flat_beyond_its_optimum_is_followed_by_the_hidden_grip_table(model):
