@@ -29,6 +29,12 @@ def frictional_power_W(
     return np.abs(Fx_N * V * kappa) + np.abs(Fy_N * V * np.tan(alpha_rad))
 
 
+def stiffened(kappa: Array, alpha_rad: Array, k: Array | float) -> tuple[Array, Array]:
+    """The slips at which a tyre whose slip stiffness is ``k`` times the file's gives the
+    file's forces (kappa and tan(alpha) scaled: a stiffness factor as a similarity)."""
+    return kappa * k, np.arctan(np.tan(alpha_rad) * k)
+
+
 def cumulative_work_J(P_W: Array, t_s: Array) -> Array:
     """E_f(t) = integral of P_fric dt [J] (left rectangle rule, E_f(t0) = 0)."""
     dt = np.diff(t_s, prepend=t_s[:1])

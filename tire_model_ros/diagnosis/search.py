@@ -465,15 +465,17 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
     effect names (a tyre cooling from a warm start, unheated by the power put in, for a leak,
     brush multi2_b s32).
     """
-    prefixes = [n.ctx.wheel.prefix for _, n, _ in _new(t, cur)]
+    new = _new(t, cur)
+    prefixes = [n.ctx.wheel.prefix for _, n, _ in new]
     if not prefixes:
         return True, ""
+    by_drive = any(e.shown_by_drive for _, _, e in new)
     done = max(_changed(t, cur, prefixes), 1e-12)  # what the effect changes
     out, tested = [], 0
     for c, ctrl in _alternatives(t, cur, lambda m, ctx: m.controls(ctx)):
         apart = _changed(t, ctrl, prefixes) / done
         rms = ctrl.score.rms
-        if apart < ev.CONTROL_RESOLVES and c.of_time and _added(t).shown_by_drive:
+        if apart < ev.CONTROL_RESOLVES and c.of_time and by_drive:
             return False, (f"predicts what {c.label} does ({t.score.rms:.3f} vs "
                            f"{rms:.3f}, {apart:.2f} apart): a change in time, its cause not "
                            "shown")  # fmt: skip
@@ -489,11 +491,6 @@ def _controls(t: Joint, cur: Joint) -> tuple[bool, str]:
         return True, ""
     verdict = "beats its controls" if tested else "its controls cannot test it (none tested)"
     return True, f"{verdict}: {', '.join(out)} vs {t.score.rms:.3f} (held-out RMS, noise units)"
-
-
-def _added(t: Joint) -> EffectModel:
-    """The model of the effect ``t`` added (one wheel's: the same class on all)."""
-    return next(iter(t.effect(t.keys[-1]).values()))
 
 
 def _rivals(t: Joint, cur: Joint) -> tuple[bool, str]:

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..dynamics import stiffened
 from ..prepare import Context
 from .base import Array, EffectModel, Index, Param
 
@@ -128,8 +129,7 @@ class Wear(EffectModel):
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         kappa, alpha = inp["kappa"], inp["alpha"]
         assert kappa is not None and alpha is not None
-        k = 1.0 + float(x[1]) * self.worn(x, ctx)
-        inp["kappa"], inp["alpha"] = kappa * k, np.arctan(np.tan(alpha) * k)
+        inp["kappa"], inp["alpha"] = stiffened(kappa, alpha, 1.0 + float(x[1]) * self.worn(x, ctx))
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return None  # the session's history

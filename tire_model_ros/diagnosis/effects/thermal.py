@@ -22,7 +22,7 @@ import numpy as np
 
 from tire_model_ros.model.states import Node
 
-from ..dynamics import first_order
+from ..dynamics import first_order, stiffened
 from ..prepare import THERMAL_RISE_REF_K, Context
 from .base import Array, EffectModel, Index, Param
 
@@ -298,8 +298,7 @@ class HiddenThermal(_TTModel):
         c = self.values(x)["stiffness_per_K"]
 
         def make() -> tuple[Array, Array]:
-            k = np.maximum(1.0 + c * self.nodes(x, ctx)[1], 0.3)
-            return kappa * k, np.arctan(np.tan(alpha) * k)
+            return stiffened(kappa, alpha, np.maximum(1.0 + c * self.nodes(x, ctx)[1], 0.3))
 
         key = (*self._node_key(x), c)
         inp["kappa"], inp["alpha"] = self.remembered("slip", ctx, key, make, (kappa, alpha))
