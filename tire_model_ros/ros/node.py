@@ -800,6 +800,12 @@ def run(make: Callable[[], Any], done: Callable[[Any], bool] = lambda _n: False)
         spin(executor, lambda: done(node))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except _rclpy.RCLError:
+        if rclpy.ok():
+            raise
+        # SIGINT/SIGTERM while the node was still being made (seen under load): the signal
+        # shut the context down, and the next create_* call failed on it; a shutdown, not a
+        # crash
     except START_ERRORS as exc:
         print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
         code = 1
