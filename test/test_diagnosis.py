@@ -990,6 +990,43 @@ def test_a_tyre_effect_shares_the_union_of_what_its_wheels_propose():
     assert [p.lo for p in lateral.params] == [-2.0, -2.0, -1.0]  # x: only the wheels with it
 
 
+def test_a_tyre_effect_runs_in_each_of_its_forms_on_every_wheel_that_proposes_it(model):
+    """A driven front wheel proposes camber with its combined-slip terms, a free-rolling rear
+    wheel only the plain form; both run the same tyre. Were the combined form fitted on the
+    front wheels alone, the rear wheels would keep the baseline's missing camber thrust and a
+    per-wheel offset would take it (car camber s35: named offset first, then camber). The
+    combined form runs on both wheels, with one parameter space."""
+    from tire_model_ros.diagnosis.effects.static import Camber
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+    from tire_model_ros.diagnosis.result import set_noise
+    from tire_model_ros.diagnosis.search import make_library
+
+    wheels, _ = _session(model, {"noise": True})
+    w = wheels[0]
+    gamma = np.radians(2.0) * np.sin(2.0 * np.pi * w.t / 45.0)
+    braking = np.sin(2.0 * np.pi * w.t / 20.0) > 0.9
+    kappa = np.where(braking, -0.03, 0.004)
+    noise = np.random.default_rng(1).normal(0.0, 15.0, len(w.t))
+    front = dataclasses.replace(
+        w, prefix="/car/fl", gamma=gamma, kappa=kappa, Fx=60e3 * kappa * np.cos(w.alpha) + noise
+    )
+    rear = dataclasses.replace(w, prefix="/car/rl", gamma=gamma)
+    ctxs = []
+    for series in (front, rear):
+        ctx = make_context(prepare_wheel(series, model, np.random.default_rng(0)), model)
+        set_noise(ctx)
+        ctxs.append(ctx)
+    pools = [Camber.propose(c) for c in ctxs]
+    assert [len(p) for p in pools] == [2, 1]  # the rear wheel alone cannot tell the terms
+    library = make_library(ctxs, pools)
+    forms = {key[1]: ms for key, ms in library.items()}
+    combined = forms["Magic Formula camber coefficients with their combined-slip terms"]
+    assert list(combined) == ["/car/fl", "/car/rl"]
+    assert combined["/car/rl"].pnames == combined["/car/fl"].pnames
+    assert "RBY4" in combined["/car/rl"].pnames
+    assert list(forms["Magic Formula camber coefficients"]) == ["/car/fl", "/car/rl"]
+
+
 def test_sidewall_contact_acts_where_its_fitted_gate_opens_and_has_an_ungated_control(model):
     """Sidewall contact's region is the fitted model's own (past the threshold deflection,
     beyond the contact slip angle), not a fixed quantile of the session; the corner is the

@@ -217,13 +217,7 @@ def search(
             for c, b in zip(ctxs, baselines, strict=True)
         }
     )
-    library: dict[Key, dict[str, EffectModel]] = {}
-    for c, pool in zip(ctxs, pools, strict=True):
-        for m in pool:
-            library.setdefault(_key(m), {})[c.wheel.prefix] = m
-    for ms in library.values():
-        if next(iter(ms.values())).tyre:
-            shared(list(ms.values()))
+    library = make_library(ctxs, pools)
     cur = base
     accepted: dict[Key, Joint] = {}
     alone: dict[Key, float] = {}  # what each explains added to the baseline alone
@@ -267,6 +261,31 @@ def search(
     }
     chosen = sorted(cur.keys, key=lambda k: -explained[k])
     return Selection(base, cur, chosen, explained, explained_wheel, accepted, log)
+
+
+def make_library(
+    ctxs: Sequence[Context], pools: Sequence[Iterable[EffectModel]]
+) -> dict[Key, dict[str, EffectModel]]:
+    """Per effect model, its model on each wheel it applies to. A tyre's effect acts on every
+    wheel that proposes a form of it, in each form some wheel proposes (a wheel that alone
+    cannot tell a form's detail, the combined-slip terms of a camber, still runs the tyre's),
+    with one parameter space (:func:`shared`)."""
+    library: dict[Key, dict[str, EffectModel]] = {}
+    kinds: dict[str, set[type[EffectModel]]] = {}
+    for c, pool in zip(ctxs, pools, strict=True):
+        for m in pool:
+            library.setdefault(_key(m), {})[c.wheel.prefix] = m
+            kinds.setdefault(c.wheel.prefix, set()).add(type(m))
+    for ms in library.values():
+        e = next(iter(ms.values()))
+        if not e.tyre:
+            continue
+        for c in ctxs:
+            p = c.wheel.prefix
+            if p not in ms and type(e) in kinds.get(p, set()):
+                ms[p] = e.on(c)
+        shared(list(ms.values()))
+    return library
 
 
 def _name(library: dict[Key, dict[str, EffectModel]], key: Key) -> str:

@@ -101,6 +101,11 @@ class EffectModel:
         """Simpler models of the same mismatch that this one must predict better than."""
         return []
 
+    def on(self, ctx: Context) -> EffectModel:
+        """This form of the model on another wheel (a tyre's effect acts on every wheel that
+        proposes a form of it, :func:`~..search.search`)."""
+        return type(self)(ctx)  # type: ignore[arg-type]  # a model is made from its wheel
+
     def rivals(self, ctx: Context) -> list[EffectModel]:
         """Imperfections of the recording, not missing physics, that would leave the same
         mismatch: a rival that predicts held-out sweeps better than this model (as a control

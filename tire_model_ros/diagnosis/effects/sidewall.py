@@ -128,6 +128,9 @@ class SidewallContact(EffectModel):
             return []  # the session does not run past the peak
         return [cls(ctx)] if _corner_s(ctx) >= MIN_CORNER_S else []
 
+    def on(self, ctx: Context) -> EffectModel:
+        return SidewallContact(ctx, self.gated)
+
     def controls(self, ctx: Context) -> list[EffectModel]:
         return [SidewallContact(ctx, gated=False)] if self.gated else []
 

@@ -118,6 +118,7 @@ class Camber(_CoefficientRefit):
     tyre = True
 
     def __init__(self, ctx: Context, combined: bool = False):
+        self.combined = combined
         self.label = "Magic Formula camber coefficients" + (
             " with their combined-slip terms" if combined else ""
         )
@@ -139,6 +140,9 @@ class Camber(_CoefficientRefit):
             return []
         out: list[EffectModel] = [cls(ctx)]
         return out + ([cls(ctx, combined=True)] if combined_shows(ctx) else [])
+
+    def on(self, ctx: Context) -> EffectModel:
+        return Camber(ctx, self.combined)
 
     def support(self, ctx: Context, x: Array | None = None) -> Mask | None:
         return np.asarray(np.abs(ctx.wheel.x("gamma")) > CAMBER_MIN_RAD, dtype=np.bool_)
