@@ -990,13 +990,14 @@ def test_a_tyre_effect_shares_the_union_of_what_its_wheels_propose():
     assert [p.lo for p in lateral.params] == [-2.0, -2.0, -1.0]  # x: only the wheels with it
 
 
-def test_a_tyre_effect_runs_in_each_of_its_forms_on_every_wheel_that_proposes_it(model):
-    """A driven front wheel proposes camber with its combined-slip terms, a free-rolling rear
-    wheel only the plain form; both run the same tyre. Were the combined form fitted on the
-    front wheels alone, the rear wheels would keep the baseline's missing camber thrust and a
-    per-wheel offset would take it (car camber s35: named offset first, then camber). The
-    combined form runs on both wheels, with one parameter space."""
-    from tire_model_ros.diagnosis.effects.static import Camber
+def test_a_tyre_effect_runs_in_each_of_its_forms_on_every_wheel_of_the_car(model):
+    """A driven front wheel proposes camber with its combined-slip terms and combined slip, a
+    free-rolling rear wheel only the plain camber; both run the same tyre. Were the combined
+    forms fitted on the front wheels alone, the rear wheels would keep the baseline's missing
+    camber thrust and a per-wheel offset would take it (car camber s35: named offset first,
+    then camber), or keep the combined-slip error a braking rear wheel shows (car combined
+    s35). Each form runs on both wheels, with one parameter space."""
+    from tire_model_ros.diagnosis.effects.static import Camber, CombinedSlip
     from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
     from tire_model_ros.diagnosis.result import set_noise
     from tire_model_ros.diagnosis.search import make_library
@@ -1016,15 +1017,15 @@ def test_a_tyre_effect_runs_in_each_of_its_forms_on_every_wheel_that_proposes_it
         ctx = make_context(prepare_wheel(series, model, np.random.default_rng(0)), model)
         set_noise(ctx)
         ctxs.append(ctx)
-    pools = [Camber.propose(c) for c in ctxs]
-    assert [len(p) for p in pools] == [2, 1]  # the rear wheel alone cannot tell the terms
+    pools = [Camber.propose(c) + CombinedSlip.propose(c) for c in ctxs]
+    assert [len(p) for p in pools] == [3, 1]  # the rear wheel alone cannot tell the terms
     library = make_library(ctxs, pools)
-    forms = {key[1]: ms for key, ms in library.items()}
-    combined = forms["Magic Formula camber coefficients with their combined-slip terms"]
-    assert list(combined) == ["/car/fl", "/car/rl"]
-    assert combined["/car/rl"].pnames == combined["/car/fl"].pnames
-    assert "RBY4" in combined["/car/rl"].pnames
-    assert list(forms["Magic Formula camber coefficients"]) == ["/car/fl", "/car/rl"]
+    assert len(library) == 3
+    for ms in library.values():
+        assert list(ms) == ["/car/fl", "/car/rl"]
+        assert ms["/car/rl"].pnames == ms["/car/fl"].pnames
+    combined = library[("CombinedSlip", CombinedSlip.label)]["/car/rl"]
+    assert {"RVY2", "RBX3", "RBY4", "RVY3"} <= set(combined.pnames)  # camber's: gamma moves
 
 
 def test_sidewall_contact_acts_where_its_fitted_gate_opens_and_has_an_ungated_control(model):

@@ -266,24 +266,20 @@ def search(
 def make_library(
     ctxs: Sequence[Context], pools: Sequence[Iterable[EffectModel]]
 ) -> dict[Key, dict[str, EffectModel]]:
-    """Per effect model, its model on each wheel it applies to. A tyre's effect acts on every
-    wheel that proposes a form of it, in each form some wheel proposes (a wheel that alone
-    cannot tell a form's detail, the combined-slip terms of a camber, still runs the tyre's),
-    with one parameter space (:func:`shared`)."""
+    """Per effect model, its model on each wheel it applies to. A tyre's effect, proposed by
+    any wheel, acts on every wheel of the car that reaches where it acts, with one parameter
+    space (:func:`shared`): a wheel that alone could not tell it (a rear wheel that never
+    drives, for the combined-slip terms) still runs the tyre's."""
     library: dict[Key, dict[str, EffectModel]] = {}
-    kinds: dict[str, set[type[EffectModel]]] = {}
     for c, pool in zip(ctxs, pools, strict=True):
         for m in pool:
             library.setdefault(_key(m), {})[c.wheel.prefix] = m
-            kinds.setdefault(c.wheel.prefix, set()).add(type(m))
-    for ms in library.values():
+    for key, ms in library.items():
         e = next(iter(ms.values()))
         if not e.tyre:
             continue
-        for c in ctxs:
-            p = c.wheel.prefix
-            if p not in ms and type(e) in kinds.get(p, set()):
-                ms[p] = e.on(c)
+        made = {c.wheel.prefix: ms.get(c.wheel.prefix) or e.on(c) for c in ctxs}
+        library[key] = ms = {p: m for p, m in made.items() if m is not None}
         shared(list(ms.values()))
     return library
 

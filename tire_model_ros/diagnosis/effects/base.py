@@ -101,9 +101,10 @@ class EffectModel:
         """Simpler models of the same mismatch that this one must predict better than."""
         return []
 
-    def on(self, ctx: Context) -> EffectModel:
-        """This form of the model on another wheel (a tyre's effect acts on every wheel that
-        proposes a form of it, :func:`~..search.search`)."""
+    def on(self, ctx: Context) -> EffectModel | None:
+        """This form of a tyre's model on another wheel of the car, which the tyre's one
+        parameter set acts on whether or not that wheel alone could tell it (None: the wheel
+        never reaches where it acts)."""
         return type(self)(ctx)  # type: ignore[arg-type]  # a model is made from its wheel
 
     def rivals(self, ctx: Context) -> list[EffectModel]:

@@ -128,8 +128,8 @@ class SidewallContact(EffectModel):
             return []  # the session does not run past the peak
         return [cls(ctx)] if _corner_s(ctx) >= MIN_CORNER_S else []
 
-    def on(self, ctx: Context) -> EffectModel:
-        return SidewallContact(ctx, self.gated)
+    def on(self, ctx: Context) -> EffectModel | None:
+        return SidewallContact(ctx, self.gated) if self.propose(ctx) else None
 
     def controls(self, ctx: Context) -> list[EffectModel]:
         return [SidewallContact(ctx, gated=False)] if self.gated else []

@@ -141,7 +141,7 @@ class Camber(_CoefficientRefit):
         out: list[EffectModel] = [cls(ctx)]
         return out + ([cls(ctx, combined=True)] if combined_shows(ctx) else [])
 
-    def on(self, ctx: Context) -> EffectModel:
+    def on(self, ctx: Context) -> EffectModel | None:
         return Camber(ctx, self.combined)
 
     def support(self, ctx: Context, x: Array | None = None) -> Mask | None:
@@ -150,8 +150,10 @@ class Camber(_CoefficientRefit):
 
 class CombinedSlip(_CoefficientRefit):
     """The combined-slip weighting functions (Gxa: rBx1, rBx2, rCx1; Gyk: rBy1, rBy2, rCy1)
-    and the slip-ratio-induced side force SVyk (rVy1, rVy4, rVy5, rVy6) refitted (Pacejka
-    2012 eqs. 4.E50-4.E67)."""
+    and the slip-ratio-induced side force SVyk (rVy1, rVy2, rVy4, rVy5, rVy6) refitted
+    (Pacejka 2012 eqs. 4.E50-4.E67); where the inclination moves, with their camber terms
+    (rBx3 of Bxa, 4.E54; rBy4 of Byk, 4.E62; rVy3 of DVyk, 4.E67), which belong to both
+    physics: the model a recording admits first holds them."""
 
     word = "combined_slip"
     label = "combined-slip weighting and induced side force (rBx, rCx, rBy, rCy, rVy)"
@@ -160,16 +162,20 @@ class CombinedSlip(_CoefficientRefit):
     # B = 0 a weighting is flat in B; with rVy4-6 = 0 the induced force has no gradient)).
     COEFS: ClassVar[dict[str, tuple[float, float]]] = {
         "RBX1": (1.0, 10.0), "RBX2": (1.0, 10.0), "RCX1": (0.1, 1.0), "RBY1": (1.0, 10.0),
-        "RBY2": (1.0, 5.0), "RCY1": (0.1, 1.0), "RVY1": (0.01, 0.0), "RVY4": (5.0, 20.0),
-        "RVY5": (0.2, 2.0), "RVY6": (1.0, 10.0),
+        "RBY2": (1.0, 5.0), "RCY1": (0.1, 1.0), "RVY1": (0.01, 0.0), "RVY2": (0.01, 0.0),
+        "RVY4": (5.0, 20.0), "RVY5": (0.2, 2.0), "RVY6": (1.0, 10.0),
+    }  # fmt: skip
+    CAMBER: ClassVar[dict[str, tuple[float, float]]] = {
+        "RBX3": (100.0, 0.0), "RBY4": (100.0, 0.0), "RVY3": (0.1, 0.0),
     }  # fmt: skip
 
     def __init__(self, ctx: Context):
-        names = list(self.COEFS)  # proposed only where both slips are swept
-        params = coefficient_params(ctx, names, [self.COEFS[k][0] for k in names], 50.0)
+        coefs = self.COEFS | (self.CAMBER if inclination_moves(ctx) else {})
+        names = list(coefs)  # proposed only where both slips are swept
+        params = coefficient_params(ctx, names, [coefs[k][0] for k in names], 50.0)
         out = []
         for p in params:
-            usual = self.COEFS[p.name][1]
+            usual = coefs[p.name][1]
             if ctx.base[p.name] == 0.0 and usual:
                 p = Param(p.name, usual, min(p.lo, -2 * usual), max(p.hi, 2 * usual), p.scale)
             out.append(p)
