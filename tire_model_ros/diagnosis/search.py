@@ -278,9 +278,13 @@ def make_library(
         e = next(iter(ms.values()))
         if not e.tyre:
             continue
-        made = {c.wheel.prefix: ms.get(c.wheel.prefix) or e.on(c) for c in ctxs}
-        library[key] = ms = {p: m for p, m in made.items() if m is not None}
-        shared(list(ms.values()))
+        on: dict[str, EffectModel] = {}
+        for c in ctxs:
+            made = ms[c.wheel.prefix] if c.wheel.prefix in ms else e.on(c)
+            if made is not None:
+                on[c.wheel.prefix] = made
+        library[key] = on
+        shared(list(on.values()))
     return library
 
 
