@@ -129,6 +129,27 @@ def test_concealed_temperature_is_named_first_and_halves_heldout_error(model, he
     assert fx.thermal_slow.tau_s == pytest.approx(first.parameters["tau_slow_s"])
 
 
+def test_a_twin_scores_the_models_on_the_channels_the_recording_has(model, heated):
+    """A virtual rig's twin carries the true temperature and pressure, which a recording may
+    conceal. Replayed on the twin, the models must see only what the diagnosis saw: given
+    the twin's true pressure, the file's pressure terms would run on a concealed leak and
+    what they make of it would count as model error (brush pressure_leak s36: the floor
+    39 N, above the baseline's 24 N held-out RMSE; without the hidden channels 16 N)."""
+    from tire_model_ros.diagnosis.result import reference_context
+
+    wheels, diag = heated
+    twin, _ = _session(model, {"heating": True, "noise": False})
+    assert twin[0].T is not None and twin[0].p is not None
+    wd = diag.wheels[wheels[0].prefix]
+    ref = reference_context(wd, twin[0])
+    assert ref.wheel.inputs["T"] is None  # concealed in the recording
+    np.testing.assert_allclose(ref.wheel.inputs["p"], twin[0].p)  # recorded: the twin's
+    concealed = dataclasses.replace(wd, ctx=dataclasses.replace(
+        wd.ctx, wheel=dataclasses.replace(wd.ctx.wheel, inputs={**wd.ctx.wheel.inputs, "p": None})
+    ))  # fmt: skip
+    assert reference_context(concealed, twin[0]).wheel.inputs["p"] is None
+
+
 def test_relaxation_is_named(model):
     wheels, _ = _session(model, {"relaxation": True})
     diag = diagnose(wheels, model, seed=0)

@@ -354,12 +354,21 @@ def set_noise(ctx: Context) -> None:
 
 
 def reference_context(wd: WheelDiagnosis, twin: WheelSeries) -> Context:
-    """A context of the twin recording with the diagnosed wheel's sweeps and folds."""
+    """A context of the twin recording with the diagnosed wheel's sweeps and folds, and only
+    the channels the diagnosed recording has: a twin's true pressure or temperature, which
+    the recording conceals, would reach the models as an input the diagnosis never had (the
+    file's pressure terms run on a concealed leak's true pressure), and what a model does
+    with it would count as its error."""
     ctx = wd.ctx
     w = ctx.wheel
     if len(twin.t) != w.n or not np.allclose(twin.t - twin.t[0], w.t, atol=1e-6):
         raise ValueError(f"{w.prefix}: reference recording does not match the samples")
-    r = prepare_wheel(twin, ctx.model, np.random.default_rng(0))
+    seen = dataclasses.replace(
+        twin,
+        p=None if w.inputs["p"] is None else twin.p,
+        T=None if w.inputs["T"] is None else twin.T,
+    )
+    r = prepare_wheel(seen, ctx.model, np.random.default_rng(0))
     r = dataclasses.replace(
         r,
         segments=w.segments,
