@@ -222,6 +222,7 @@ def search(
     accepted: dict[Key, Joint] = {}
     alone: dict[Key, float] = {}  # what each explains added to the baseline alone
     alone_wheel: dict[Key, dict[str, float]] = {}  # ... and on each wheel
+    runner_up: dict[Key, Key | None] = {}  # the next-ranked effect of another word at its step
     for step in range(MAX_EFFECTS):
         words = {_word(library, k) for k in cur.keys}
         trials = [
@@ -239,10 +240,15 @@ def search(
             assert t.vs is not None
             log.append(f"step {step}: {_name(library, t.keys[-1])} held-out {t.score.rms:.3f} "
                        f"(current {cur.score.rms:.3f}) {t.vs.text()}")  # fmt: skip
-        best = next((t for t in _ranked(trials, library) if _believed(t, cur, library, log)), None)
+        ranked = _ranked(trials, library)
+        best = next((t for t in ranked if _believed(t, cur, library, log)), None)
         if best is None:
             break
         key = best.keys[-1]
+        runner_up[key] = next(
+            (t.keys[-1] for t in ranked if _word(library, t.keys[-1]) != _word(library, key)),
+            None,
+        )
         _, note = _stability(best, cur)  # reported, not a test: see _stability
         best.notes += [note] if note else []
         full = joint_add(cur, key, library[key], everything=True)  # every parameter refitted
@@ -250,7 +256,7 @@ def search(
         cur = full if full.score.rms <= best.score.rms else best
         accepted[key] = cur
         log.append(f"accepted {_name(library, key)}")
-    cur = _swap(cur, accepted, library, log)
+    cur = _swap(cur, accepted, runner_up, library, log)
     cur, unique, per_wheel = _backward(cur, base, log, library)
     # The Shapley value of each effect for two effects, its two-term estimate beyond: the mean
     # of what it removes added to the baseline alone and added to all the others.
@@ -567,16 +573,23 @@ def _changed(t: Joint, other: Joint, prefixes: Sequence[str]) -> float:
 def _swap(
     cur: Joint,
     accepted: dict[Key, Joint],
+    runner_up: dict[Key, Key | None],
     library: dict[Key, dict[str, EffectModel]],
     log: list[str],
 ) -> Joint:
-    """Each chosen effect against the other models of its word, given all the others: one
-    that predicts held-out sweeps better (as a control is beaten) and that the evidence tests
-    believe takes its place. A model chosen early was chosen without the effects chosen after
-    it (a friction step stood in for wear until the speed law whose blocks ran in time order
-    was in)."""
+    """Each chosen effect against the other models of its word and against the runner-up of
+    the step that chose it, given all the others: one that predicts held-out sweeps better
+    (as a control is beaten) and that the evidence tests believe takes its place. A model
+    chosen early was chosen without the effects chosen after it (a friction step stood in for
+    wear until the speed law whose blocks ran in time order was in; a concealed heating, fast
+    and slow, stood in for wear and a speed law together, flattrac multi3 s1)."""
     for key in list(cur.keys):
+        if key not in cur.keys:
+            continue
+        words = {_word(library, k) for k in cur.keys if k != key}
         others = [k for k in library if k != key and _word(library, k) == _word(library, key)]
+        r = runner_up.get(key)
+        others += [r] if r is not None and _word(library, r) not in words else []
         if not others:
             continue
         rest = _without(cur, key)
