@@ -7,11 +7,12 @@ set for all the wheels), and cross-validated on the two selection folds; those t
 current model significantly, the evidence of all wheels pooled, are ranked by held-out score
 (the simplest first among near-ties), and the first one the evidence tests believe joins
 (:mod:`.evidence`: materiality, support, controls).
-Then every chosen effect must still earn its place against the others (backward step), and
-each is credited with what it explains: the share of the baseline's held-out mean square
-error of Fx and Fy that it removes, the mean of that added to the baseline alone and added to
-all the others (effects that overlap, two friction laws, share what they both explain). No
-rule here names an effect.
+Then each chosen effect meets, given those chosen after it, the other models of its word and
+the runner-up of the step that chose it (swap); every chosen effect must still earn its place
+against the others (backward step), and each is credited with what it explains: the share of
+the baseline's held-out mean square error of Fx and Fy that it removes, the mean of that
+added to the baseline alone and added to all the others (effects that overlap, two friction
+laws, share what they both explain). No rule here names an effect.
 """
 
 from __future__ import annotations
