@@ -584,9 +584,7 @@ def _swap(
     chosen early was chosen without the effects chosen after it (a friction step stood in for
     wear until the speed law whose blocks ran in time order was in; a concealed heating, fast
     and slow, stood in for wear and a speed law together, flattrac multi3 s1)."""
-    for key in list(cur.keys):
-        if key not in cur.keys:
-            continue
+    for key in list(cur.keys):  # a swap replaces only ``key``: the later keys stay in
         words = {_word(library, k) for k in cur.keys if k != key}
         others = [k for k in library if k != key and _word(library, k) == _word(library, key)]
         r = runner_up.get(key)
