@@ -365,12 +365,13 @@ def test_wear_only_ever_takes_grip_away(model):
     wear = Wear(ctx)
     loss, stiffening = wear.params
     assert loss.lo == 0.0 and loss.hi > 0.0 and stiffening.lo == 0.0
-    assert np.all(wear.mu_scale(np.array([loss.lo, 1.0]), ctx) == 1.0)
-    assert np.all(np.diff(wear.mu_scale(np.array([loss.hi, 1.0]), ctx)) <= 0.0)
+    every = ctx.rows["all"]
+    assert np.all(wear.mu_scale(np.array([loss.lo, 1.0]), ctx, every) == 1.0)
+    assert np.all(np.diff(wear.mu_scale(np.array([loss.hi, 1.0]), ctx, every)) <= 0.0)
     # the slip stiffness rises with the grip lost, in the proportion fitted
     w = ctx.wheel
     inp = {"kappa": np.full(len(w.t), 0.01), "alpha": np.full(len(w.t), 0.02)}
-    wear.inputs(np.array([0.1, 2.0]), ctx, inp)
+    wear.per_sample(np.array([0.1, 2.0]), ctx, inp, every)
     gain = inp["kappa"] / 0.01 - 1.0
     np.testing.assert_allclose(gain, 2.0 * 0.1 * w.E / ctx.E_ref)
     assert gain[-1] > 0.0 and np.all(np.diff(gain) >= 0.0)
@@ -738,11 +739,62 @@ def test_an_effect_is_stable_when_two_fits_do_the_same_to_the_forces():
     assert agree_doing(rms(0.5 * (c + d)), rms(c - d))
 
 
+def _moved(m):
+    """Parameters of ``m`` a third of the way from their starts to their upper bounds."""
+    return np.array([p.x0 + (p.hi - p.x0) / 3.0 for p in m.params])
+
+
+@pytest.mark.parametrize("omit", [[], ["temperature"]])
+def test_every_model_predicts_at_a_folds_rows_what_it_predicts_on_the_whole_session(model, omit):
+    """A fit evaluates its fold's rows only, the states integrated over the whole session and
+    what acts per sample at those rows: every model of the library (recorded and concealed
+    temperature alike), moved away from its start, predicts there what it predicts on every
+    sample."""
+    from tire_model_ros.diagnosis.effects import candidates
+    from tire_model_ros.diagnosis.predict import predict
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"heating": True, "wear": True}, omit=omit)
+    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
+    rows, every = ctx.rows["a"], ctx.rows["all"]
+    models = candidates(ctx)
+    assert len(models) >= 10
+    for m in models:
+        x = _moved(m)
+        part, whole = predict([m], x, ctx, rows), predict([m], x, ctx, every)
+        for ch in ("Fx", "Fy", "Mz"):
+            np.testing.assert_allclose(
+                part[ch], whole[ch][rows], rtol=1e-12, atol=1e-9, err_msg=f"{m} {ch}"
+            )
+
+
+def test_the_same_effects_predict_the_same_whichever_was_chosen_first(model):
+    """States and lags act first, then the slip stiffness they set: a concealed warm-up and a
+    relaxation length give one prediction in either order (the stiffness scales the lagged
+    slip, as the node's forward model does)."""
+    from tire_model_ros.diagnosis.effects.thermal import HiddenThermal
+    from tire_model_ros.diagnosis.effects.transient import Relaxation
+    from tire_model_ros.diagnosis.predict import predict
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    wheels, _ = _session(model, {"heating": True, "relaxation": True}, omit=["temperature"])
+    ctx = make_context(prepare_wheel(wheels[0], model, np.random.default_rng(0)), model)
+    (heat,), (lag,) = HiddenThermal.propose(ctx), Relaxation.propose(ctx)
+    xh, xl = _moved(heat), _moved(lag)
+    xh[heat.pnames.index("stiffness_per_K")] = -0.01
+    rows = ctx.rows["ab"]
+    one = predict([heat, lag], np.r_[xh, xl], ctx, rows)
+    other = predict([lag, heat], np.r_[xl, xh], ctx, rows)
+    for ch in ("Fx", "Fy"):
+        np.testing.assert_allclose(one[ch], other[ch], rtol=1e-12, atol=1e-9)
+    alone = predict([heat], xh, ctx, rows)
+    assert np.max(np.abs(one["Fy"] - alone["Fy"])) > 10.0  # the lag does act
+
+
 def test_a_remembered_hidden_state_is_never_served_stale(model):
-    """The hidden thermal model integrates its nodes once per node parameters and scales the
-    slips once per stiffness and input arrays; whatever moves between calls (a node
-    parameter, the stiffness, a grip coefficient, the slips an earlier effect made, the
-    wheel), what it gives is what a fresh model computes."""
+    """The hidden thermal model integrates its nodes once per node parameters; whatever moves
+    between calls (a node parameter, the stiffness, a grip coefficient, the slips an earlier
+    effect made, the wheel), what it gives is what a fresh model computes."""
     from tire_model_ros.diagnosis.effects.thermal import HiddenThermal
     from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
 
@@ -763,8 +815,9 @@ def test_a_remembered_hidden_state_is_never_served_stale(model):
             if slips != "same":
                 inp["kappa"] = inp["kappa"] * (1.0 if slips == "equal" else 0.9)
             ref = dict(inp)
-            m.inputs(x, ctx, inp)
-            HiddenThermal(ctx).inputs(x, ctx, ref)
+            for effect, arrays in ((m, inp), (HiddenThermal(ctx), ref)):
+                effect.inputs(x, ctx, arrays)
+                effect.per_sample(x, ctx, arrays, ctx.rows["all"])
             for k in ("T", "kappa", "alpha"):
                 assert np.array_equal(inp[k], ref[k]), (name, slips, k)
             assert not inp["T"].flags.writeable  # a remembered array cannot be changed
@@ -787,7 +840,7 @@ def test_a_recorded_temperature_reaches_the_grip_as_the_node_feeds_it(model):
     x = m.x0.copy()
     x[m.pnames.index("tau_T_s")], x[m.pnames.index("T_surface_weight")] = 30.0, 0.4
     x[-4:] = [1.1, 1.05, 0.9, 0.7]  # a window: grip peaks below the median
-    fitted, scale = m.temperature(x, ctx), m.mu_scale(x, ctx)
+    fitted, scale = m.temperature(x, ctx), m.mu_scale(x, ctx, ctx.rows["all"])
     carried = m.carry(x, ctx)
     assert carried is not None
     knots, mu = carried["grip_table"]

@@ -92,6 +92,20 @@ def test_evaluate_one_equals_evaluate(model, limits) -> None:
         assert one == expected, i
 
 
+@pytest.mark.parametrize("modes", [{}, {"turn_slip": True, "alpha_star": True}])
+def test_the_forces_alone_are_the_forces_of_the_whole_evaluation(model, modes) -> None:
+    # moments=False skips the aligning and moment stages: every force output is bit-equal to
+    # the whole evaluation's (plain loop and the turn-slip / alpha* one), the moments are NaN.
+    Fz, kappa, alpha, gamma, Vx, p, T = _random_inputs(1500, seed=7)
+    whole = model.evaluate(Fz, kappa, alpha, gamma, Vx, p, T, full=False, **modes)
+    forces = model.evaluate(Fz, kappa, alpha, gamma, Vx, p, T, full=False, moments=False, **modes)
+    for k in ("Fx", "Fy", "Fz", "Kxk", "Kya", "mux", "muy"):
+        np.testing.assert_array_equal(getattr(forces, k), getattr(whole, k), err_msg=k)
+    for k in ("Mx", "My", "Mz", "t", "Mzr"):
+        assert np.isnan(getattr(forces, k)).all(), k
+    assert np.isfinite(whole.Mz).all()
+
+
 @pytest.mark.parametrize("limits", [True, False])
 def test_zero_camber_block_shortcut_is_exact(model, limits) -> None:
     # Blocks of zero camber take the shortcut (Fy0 at zero camber = Fy0); a tiny camber on

@@ -60,7 +60,7 @@ class Score:
 
 def errors(models: Sequence[EffectModel], x: Array, ctx: Context, rows: Index) -> dict[str, Array]:
     """Model minus measured per fitted channel at ``rows`` [N or N m] (non-finite: huge)."""
-    out = predict(models, x, ctx, rows)
+    out = predict(models, x, ctx, rows, ctx.channels)
     w = ctx.wheel
     e = {}
     for ch in ctx.channels:

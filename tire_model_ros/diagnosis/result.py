@@ -24,7 +24,7 @@ from .effects.base import Array, EffectModel, Index, Mask
 from .effects.static import Camber
 from .fitting import fit, residuals, uncertainty
 from .locate import channel_summary, where_text
-from .predict import coefficients, model_inputs, predict, split_x
+from .predict import coefficients, predict, session_inputs, split_x
 from .prepare import Context, prepare_wheel
 from .search import Selection, held
 
@@ -155,7 +155,7 @@ def finish(prefix: str, sel: Selection) -> WheelDiagnosis:
     for ch in ctx.all_channels:
         preds[f"baseline_{ch}"], preds[f"improved_{ch}"] = pb[ch], pi[ch]
     resid = {ch: w.meas[ch] - pb[ch] for ch in ctx.all_channels}
-    inp, _ = model_inputs(models, final.x, ctx)
+    inp = session_inputs(models, final.x, ctx)
     inferred = {"E_f": w.E.copy()}
     for m, xm in zip(models, split_x(models, final.x), strict=True):
         inferred.update(m.inferred(xm, ctx, inp))

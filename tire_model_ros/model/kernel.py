@@ -399,9 +399,22 @@ def _zero_camber(s, row, n) -> bool:
     return True
 
 
+@kernel
+def _no_moments(s, n):
+    """The moment rows (Mx, My, Mz, t, Mzr) of a forces-only evaluation: NaN, not computed."""
+    for k in range(len(MZ_ROWS)):
+        s[MZ_ROWS[k], :n] = math.nan
+    for k in range(len(MOM_ROWS)):
+        s[MOM_ROWS[k], :n] = math.nan
+
+
 @standalone
-def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out):
-    """Rows 0..N_FORCES-1 of ``out`` for every sample, block by block, stage by stage."""
+def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, moments, out):
+    """Rows 0..N_FORCES-1 of ``out`` for every sample, block by block, stage by stage.
+
+    ``moments`` False: the forces alone (Fx, Fy and what they need), the moment rows NaN; the
+    aligning and moment stages are more than half of the loop's time.
+    """
     mf52 = is_mf52(P)
     s = np.empty((N_SCRATCH, BLOCK))
     for i0 in range(0, Fz.shape[0], BLOCK):
@@ -410,20 +423,24 @@ def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out):
         _keep(s, COND_ROWS, o, n)
         _keep(s, LONG_ROWS, _longitudinal_stage(P, Vx, limits, i0, n, s), n)
         _keep(s, LAT_ROWS, _lateral_stage(P, limits, mf52, n, s), n)
-        if _zero_camber(s, S_GAMMA, n):  # Fy0 at zero camber is Fy0 itself: the same call
-            s[S_FY0_G0, :n] = s[S_FY0, :n]
+        if not moments:
+            _keep(s, COMB_ROWS, _combined_stage(P, limits, n, s), n)  # its Fy' is not read
+            _no_moments(s, n)
         else:
-            _keep(s, LAT_G0_ROWS, _lateral_zero_camber_stage(P, limits, mf52, n, s), n)
-        _keep(s, COMB_ROWS, _combined_stage(P, limits, n, s), n)
-        _keep(s, MZ_ROWS, _aligning_stage(P, Vx, limits, mf52, i0, n, s), n)
-        _keep(s, MOM_ROWS, _moments_stage(P, kappa, Vx, mf52, i0, n, s), n)
+            if _zero_camber(s, S_GAMMA, n):  # Fy0 at zero camber is Fy0 itself: the same call
+                s[S_FY0_G0, :n] = s[S_FY0, :n]
+            else:
+                _keep(s, LAT_G0_ROWS, _lateral_zero_camber_stage(P, limits, mf52, n, s), n)
+            _keep(s, COMB_ROWS, _combined_stage(P, limits, n, s), n)
+            _keep(s, MZ_ROWS, _aligning_stage(P, Vx, limits, mf52, i0, n, s), n)
+            _keep(s, MOM_ROWS, _moments_stage(P, kappa, Vx, mf52, i0, n, s), n)
         for k in range(N_FORCES):
             out[k, i0 : i0 + n] = s[k, :n]
 
 
 @standalone
 def forces_loop_modes(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, limits, turn_slip,
-                      alpha_star, out):  # fmt: skip
+                      alpha_star, moments, out):  # fmt: skip
     """:func:`forces_loop` with turn slip and/or alpha*, gamma* (MFeval useMode x2x, xx2)."""
     mf52 = is_mf52(P)
     s = np.empty((N_SCRATCH_MODES, BLOCK))
@@ -444,9 +461,12 @@ def forces_loop_modes(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, limits,
                                                  n, s)  # fmt: skip
             _keep(s, LAT_G0_ROWS, o, n)
         _keep(s, COMB_ROWS_MODES, _combined_stage_modes(P, limits, n, s), n)
-        o = _aligning_stage_modes(P, Vx, limits, mf52, turn_slip, i0, n, s)
-        _keep(s, MZ_ROWS, o, n)
-        _keep(s, MOM_ROWS, _moments_stage(P, kappa, Vx, mf52, i0, n, s), n)
+        if moments:
+            o = _aligning_stage_modes(P, Vx, limits, mf52, turn_slip, i0, n, s)
+            _keep(s, MZ_ROWS, o, n)
+            _keep(s, MOM_ROWS, _moments_stage(P, kappa, Vx, mf52, i0, n, s), n)
+        else:
+            _no_moments(s, n)
         for k in range(N_FORCES):
             out[k, i0 : i0 + n] = s[k, :n]
 
@@ -506,19 +526,22 @@ def evaluate_batch(
     out: F64,
     turn_slip: bool = False,
     alpha_star: bool = False,
+    moments: bool = True,
 ) -> None:
     """Evaluate every sample i of the 1-D input arrays into column i of ``out``.
 
     ``out`` has ``N_FORCES`` rows (forces and moments only) or ``N_OUT`` rows (everything).
     ``turn_slip``, ``alpha_star``: MFeval's useMode units and tens digits 2 (see
-    :meth:`TireModel.evaluate`); either runs :func:`forces_loop_modes`.
+    :meth:`TireModel.evaluate`); either runs :func:`forces_loop_modes`. ``moments`` False:
+    Mx, My, Mz, t and Mzr are not computed (NaN).
     """
     limits, turn_slip, alpha_star = bool(limits), bool(turn_slip), bool(alpha_star)
+    moments = bool(moments)
     if turn_slip or alpha_star:
         forces_loop_modes(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, limits, turn_slip,
-                          alpha_star, out)  # fmt: skip
+                          alpha_star, moments, out)  # fmt: skip
     else:
-        forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out)
+        forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, moments, out)
     if out.shape[0] >= N_OUT:
         extras_loop(P, Fz, kappa, alpha, gamma, Vx, p, phit, omega, limits, turn_slip, out)
 
@@ -530,7 +553,7 @@ def evaluate_point(P, Fz, kappa, alpha, gamma, Vx, p, T, limits):
     for k, v in enumerate((Fz, kappa, alpha, gamma, Vx, p, T, 0.0)):
         x[k, 0] = v
     out = np.empty((N_FORCES, 1))
-    forces_loop(P, x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], limits, out)
+    forces_loop(P, x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], limits, True, out)
     return out[FX, 0], out[FY, 0], out[FZ, 0], out[MX, 0], out[MY, 0], out[MZ, 0]
 
 

@@ -180,7 +180,8 @@ class TireModel:
                  Vx: ArrayLike | None = None, p: ArrayLike | None = None,
                  T: ArrayLike | None = None, *, phit: ArrayLike = 0.0,
                  omega: ArrayLike | None = None, limits: bool = True, full: bool = True,
-                 turn_slip: bool = False, alpha_star: bool = False) -> MFOutput:  # fmt: skip
+                 turn_slip: bool = False, alpha_star: bool = False,
+                 moments: bool = True) -> MFOutput:  # fmt: skip
         """Evaluate the model; array inputs broadcast against each other.
 
         Parameters
@@ -197,6 +198,8 @@ class TireModel:
             table's physical sanity range; MFeval has no temperature); False = plain equations
             (useMode 2xx).
         full : False skips the radii, stiffnesses and relaxation lengths (faster).
+        moments : False skips Mx, My, Mz, t and Mzr (NaN): the forces alone, more than twice
+            as fast (a fit of Fx and Fy).
         turn_slip : the turn-slip model of Pacejka 2012 §4.3.3 (spin phi from phit and the
             camber, the zeta factors), useMode xx2; False (default) = xx1, every zeta = 1.
             The wheel speed for the spin (and the reported omega, Re) is then iterated until Re
@@ -215,7 +218,8 @@ class TireModel:
         )
         out = np.empty((N_OUT if full else N_FORCES, Fz.size))
         evaluate_batch(self._P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, bool(limits),
-                       out, turn_slip=bool(turn_slip), alpha_star=bool(alpha_star))  # fmt: skip
+                       out, turn_slip=bool(turn_slip), alpha_star=bool(alpha_star),
+                       moments=bool(moments))  # fmt: skip
         values = {name: out[k].reshape(shape) for k, name in enumerate(OUT_NAMES[: out.shape[0]])}
         return MFOutput(**values)
 

@@ -5,10 +5,12 @@ more of four places, which the predictor (:mod:`..predict`) composes:
 
 - ``coef``: updates of Magic Formula coefficients (TTX/TTY, camber, combined slip ...), global
   for the session;
-- ``inputs``: transformed model inputs (a hidden temperature or pressure, lagged or delayed
-  slip);
-- ``mu_scale``: a per-sample friction scale (wear, sliding-speed friction, a friction step),
-  applied by the similarity method;
+- ``inputs``: transformed model inputs over the whole session (a hidden temperature or
+  pressure, lagged or delayed slip: whatever needs the samples before);
+- ``per_sample``: then, at the rows evaluated only, transforms of each sample on its own (a
+  slip stiffness that changes with a state), after every model's ``inputs``;
+- ``mu_scale``: a per-sample friction scale at those rows (wear, sliding-speed friction, a
+  friction step), applied by the similarity method;
 - ``output``: additive force offsets, or a force factor (sidewall contact).
 
 Beyond its equations, an effect model says where in the operating range it can show
@@ -119,9 +121,15 @@ class EffectModel:
         return {}
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+        """Transform the session's inputs ``inp`` (every sample) in place."""
         return None
 
-    def mu_scale(self, x: Array, ctx: Context) -> Array | None:
+    def per_sample(self, x: Array, ctx: Context, inp: dict[str, Array | None], rows: Index) -> None:
+        """Transform the inputs ``inp`` at ``rows`` in place, each sample on its own."""
+        return None
+
+    def mu_scale(self, x: Array, ctx: Context, rows: Index) -> Array | None:
+        """The friction scale at ``rows`` (None: 1)."""
         return None
 
     def output(self, x: Array, ctx: Context, out: dict[str, Array], rows: Index) -> None:

@@ -31,8 +31,8 @@ class SpeedLaw(EffectModel):
     def propose(cls, ctx: Context) -> list[EffectModel]:
         return [cls(ctx)]
 
-    def mu_scale(self, x: Array, ctx: Context) -> Array:
-        return 1.0 / np.maximum(1.0 + float(x[0]) * ctx.wheel.Vs / ctx.V0, 0.05)
+    def mu_scale(self, x: Array, ctx: Context, rows: Index) -> Array:
+        return 1.0 / np.maximum(1.0 + float(x[0]) * ctx.wheel.Vs[rows] / ctx.V0, 0.05)
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         lnV = np.log(np.geomspace(0.01, 50.0, 24))
@@ -83,11 +83,11 @@ class SpeedTable(EffectModel):
     def knots(self, x: Array) -> Array:
         return np.insert(np.asarray(x, float), self.ref, 1.0)
 
-    def mu_scale(self, x: Array, ctx: Context) -> Array:
-        w, mu = ctx.wheel, self.knots(x)
-        out = np.interp(np.log(np.maximum(w.Vs, 1e-4)), self.lnV, mu)
+    def mu_scale(self, x: Array, ctx: Context, rows: Index) -> Array:
+        Vs, mu = ctx.wheel.Vs[rows], self.knots(x)
+        out = np.interp(np.log(np.maximum(Vs, 1e-4)), self.lnV, mu)
         if self.relative:
-            Vs_ref = ctx.V0 * w.Vs / np.maximum(np.abs(w.x("V")), 1e-3)  # V0 |s|
+            Vs_ref = ctx.V0 * Vs / np.maximum(np.abs(ctx.wheel.x("V")[rows]), 1e-3)  # V0 |s|
             out = out / np.interp(np.log(np.maximum(Vs_ref, 1e-4)), self.lnV, mu)
         return np.asarray(out)
 
@@ -119,17 +119,18 @@ class Wear(EffectModel):
     def propose(cls, ctx: Context) -> list[EffectModel]:
         return [cls(ctx)]
 
-    def worn(self, x: Array, ctx: Context) -> Array:
-        """The grip lost so far [share]: the loss over the session times the work done."""
-        return float(x[0]) * ctx.wheel.E / ctx.E_ref
+    def worn(self, x: Array, ctx: Context, rows: Index) -> Array:
+        """The grip lost by ``rows`` [share]: the loss over the session times the work done."""
+        return float(x[0]) * ctx.wheel.E[rows] / ctx.E_ref
 
-    def mu_scale(self, x: Array, ctx: Context) -> Array:
-        return 1.0 - self.worn(x, ctx)
+    def mu_scale(self, x: Array, ctx: Context, rows: Index) -> Array:
+        return 1.0 - self.worn(x, ctx, rows)
 
-    def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
+    def per_sample(self, x: Array, ctx: Context, inp: dict[str, Array | None], rows: Index) -> None:
         kappa, alpha = inp["kappa"], inp["alpha"]
         assert kappa is not None and alpha is not None
-        inp["kappa"], inp["alpha"] = stiffened(kappa, alpha, 1.0 + float(x[1]) * self.worn(x, ctx))
+        k = 1.0 + float(x[1]) * self.worn(x, ctx, rows)
+        inp["kappa"], inp["alpha"] = stiffened(kappa, alpha, k)
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return None  # the session's history
@@ -150,8 +151,8 @@ class Trend(EffectModel):
     def propose(cls, ctx: Context) -> list[EffectModel]:
         return [cls(ctx)]
 
-    def mu_scale(self, x: Array, ctx: Context) -> Array:
-        return 1.0 - float(x[0]) * ctx.wheel.t / ctx.t_end
+    def mu_scale(self, x: Array, ctx: Context, rows: Index) -> Array:
+        return 1.0 - float(x[0]) * ctx.wheel.t[rows] / ctx.t_end
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return None  # the session's history
@@ -233,8 +234,8 @@ class FrictionStep(EffectModel):
             x[0], x[2] = 0.5 * (lo + hi), hi - lo
         return x
 
-    def mu_scale(self, x: Array, ctx: Context) -> Array:
-        t = ctx.wheel.t
+    def mu_scale(self, x: Array, ctx: Context, rows: Index) -> Array:
+        t = ctx.wheel.t[rows]
         tc, d, ramp = float(x[0]), float(x[1]), float(x[2])
         if ramp > self.STEP_WIDTH_S:
             return 1.0 - d * np.clip((t - tc + 0.5 * ramp) / ramp, 0.0, 1.0)

@@ -105,8 +105,8 @@ class _TTModel(EffectModel):
         """What the effects file carries: the knots [degC] and the scale at each."""
         return tuple(float(k) for k in self.knots(x, ctx)), self.grip(x)
 
-    def mu_scale(self, x: Array, ctx: Context) -> Array:
-        return np.interp(self.temperature(x, ctx), self.knots(x, ctx), self.grip(x))
+    def mu_scale(self, x: Array, ctx: Context, rows: Index) -> Array:
+        return np.interp(self.temperature(x, ctx)[rows], self.knots(x, ctx), self.grip(x))
 
     def settle(self, x: Array, seen: Sequence[tuple[Context, Index]]) -> Array:
         """The grip held beyond the hottest fitted sample (PHYSICS.md: flat beyond the
@@ -266,9 +266,9 @@ class HiddenThermal(_TTModel):
         v = self.values(x)
         return 1.0 + v[GUIDE[0]] * dT + v[GUIDE[1]] * dT**2
 
-    def mu_scale(self, x: Array, ctx: Context) -> Array:
-        dT = _dT(self.temperature(x, ctx), ctx.T_amb)
-        return self.guide(x, dT) * super().mu_scale(x, ctx)
+    def mu_scale(self, x: Array, ctx: Context, rows: Index) -> Array:
+        dT = _dT(self.temperature(x, ctx)[rows], ctx.T_amb)
+        return self.guide(x, dT) * super().mu_scale(x, ctx, rows)
 
     def factors(self, x: Array, ctx: Context, dT: Array) -> list[Array]:
         """With the guide's, kept in range too over the temperatures it is applied to."""
@@ -293,15 +293,13 @@ class HiddenThermal(_TTModel):
 
     def inputs(self, x: Array, ctx: Context, inp: dict[str, Array | None]) -> None:
         inp["T"] = self.temperature(x, ctx)
+
+    def per_sample(self, x: Array, ctx: Context, inp: dict[str, Array | None], rows: Index) -> None:
         kappa, alpha = inp["kappa"], inp["alpha"]
         assert kappa is not None and alpha is not None
         c = self.values(x)["stiffness_per_K"]
-
-        def make() -> tuple[Array, Array]:
-            return stiffened(kappa, alpha, np.maximum(1.0 + c * self.nodes(x, ctx)[1], 0.3))
-
-        key = (*self._node_key(x), c)
-        inp["kappa"], inp["alpha"] = self.remembered("slip", ctx, key, make, (kappa, alpha))
+        k = np.maximum(1.0 + c * self.nodes(x, ctx)[1][rows], 0.3)
+        inp["kappa"], inp["alpha"] = stiffened(kappa, alpha, k)
 
     def inferred(self, x: Array, ctx: Context, inp: Mapping[str, Array | None]) -> dict[str, Array]:
         return {"T": self.temperature(x, ctx)}
