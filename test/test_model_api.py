@@ -106,6 +106,25 @@ def test_the_forces_alone_are_the_forces_of_the_whole_evaluation(model, modes) -
     assert np.isfinite(whole.Mz).all()
 
 
+def test_the_forces_loop_keeps_the_call_a_jitted_caller_outside_the_package_makes(model) -> None:
+    # realities/car calls kernel.forces_loop from its own numba code with the arguments up to
+    # ``out``: ``moments`` came later, with a default, so that call still compiles and runs.
+    from numba import njit
+
+    from tire_model_ros.model.kernel import N_FORCES, forces_loop
+
+    @njit
+    def outside(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, out):
+        forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, True, out)
+
+    Fz, kappa, alpha, gamma, Vx, p, T = _random_inputs(600, seed=11)
+    out = np.empty((N_FORCES, Fz.size))
+    outside(model.coefficient_vector, Fz, kappa, alpha, gamma, Vx, p, T, np.zeros(Fz.size), out)
+    ref = model.evaluate(Fz, kappa, alpha, gamma, Vx, p, T, full=False)
+    np.testing.assert_array_equal(out[0], ref.Fx)
+    np.testing.assert_array_equal(out[5], ref.Mz)
+
+
 @pytest.mark.parametrize("limits", [True, False])
 def test_zero_camber_block_shortcut_is_exact(model, limits) -> None:
     # Blocks of zero camber take the shortcut (Fy0 at zero camber = Fy0); a tiny camber on

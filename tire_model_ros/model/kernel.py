@@ -409,11 +409,12 @@ def _no_moments(s, n):
 
 
 @standalone
-def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, moments, out):
+def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out, moments=True):
     """Rows 0..N_FORCES-1 of ``out`` for every sample, block by block, stage by stage.
 
     ``moments`` False: the forces alone (Fx, Fy and what they need), the moment rows NaN; the
-    aligning and moment stages are more than half of the loop's time.
+    aligning and moment stages are more than half of the loop's time. (Last, with a default:
+    the loop is called from outside the package with the arguments before it.)
     """
     mf52 = is_mf52(P)
     s = np.empty((N_SCRATCH, BLOCK))
@@ -440,7 +441,7 @@ def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, moments, out
 
 @standalone
 def forces_loop_modes(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, limits, turn_slip,
-                      alpha_star, moments, out):  # fmt: skip
+                      alpha_star, out, moments=True):  # fmt: skip
     """:func:`forces_loop` with turn slip and/or alpha*, gamma* (MFeval useMode x2x, xx2)."""
     mf52 = is_mf52(P)
     s = np.empty((N_SCRATCH_MODES, BLOCK))
@@ -539,9 +540,9 @@ def evaluate_batch(
     moments = bool(moments)
     if turn_slip or alpha_star:
         forces_loop_modes(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, limits, turn_slip,
-                          alpha_star, moments, out)  # fmt: skip
+                          alpha_star, out, moments)  # fmt: skip
     else:
-        forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, moments, out)
+        forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out, moments)
     if out.shape[0] >= N_OUT:
         extras_loop(P, Fz, kappa, alpha, gamma, Vx, p, phit, omega, limits, turn_slip, out)
 
@@ -553,7 +554,7 @@ def evaluate_point(P, Fz, kappa, alpha, gamma, Vx, p, T, limits):
     for k, v in enumerate((Fz, kappa, alpha, gamma, Vx, p, T, 0.0)):
         x[k, 0] = v
     out = np.empty((N_FORCES, 1))
-    forces_loop(P, x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], limits, True, out)
+    forces_loop(P, x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], limits, out)
     return out[FX, 0], out[FY, 0], out[FZ, 0], out[MX, 0], out[MY, 0], out[MZ, 0]
 
 
