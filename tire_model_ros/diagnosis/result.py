@@ -260,8 +260,10 @@ def _contribution(
     keep = [i for i, mm in enumerate(models) if mm is not m]
     xs = split_x(models, x)
     rows = ctx.rows["all"]
-    a = predict(models, x, ctx, rows)
-    b = predict([models[i] for i in keep], np.concatenate([xs[i] for i in keep]), ctx, rows)
+    a = predict(models, x, ctx, rows, ctx.channels)
+    b = predict(
+        [models[i] for i in keep], np.concatenate([xs[i] for i in keep]), ctx, rows, ctx.channels
+    )
     return {ch: a[ch] - b[ch] for ch in ctx.channels}
 
 

@@ -407,8 +407,8 @@ def _doing(new: Fit, cur: Fit, ctx: Context, rows: Index) -> dict[str, Array]:
     """What adding an effect changes in the predicted forces at ``rows``, per channel: the
     model with it minus the model without it, each fitted on the same samples (so that the
     baseline's scaling factors, refitted in both, cannot hide in it), in noise units."""
-    a = predict(new.models, new.x, ctx, rows)
-    b = predict(cur.models, cur.x, ctx, rows)
+    a = predict(new.models, new.x, ctx, rows, ctx.channels)
+    b = predict(cur.models, cur.x, ctx, rows, ctx.channels)
     return {ch: (a[ch] - b[ch]) / ctx.sigma[ch] for ch in ctx.channels}
 
 
