@@ -48,7 +48,8 @@ class MFOutput:
     Units: N, N m, m, rad/s; Kxk [N per unit slip], Kya [N/rad]. ``t`` is the pneumatic trail,
     ``Mzr`` the residual aligning torque, ``Re`` the effective rolling radius, ``Rl`` the loaded
     radius, ``rho`` the deflection, ``Cx, Cy, Cz`` the carcass stiffnesses, ``two_a, two_b`` the
-    contact patch length and width. The fields after ``Mzr`` are None with ``full=False``.
+    contact patch length and width. The fields after ``Mzr`` are None with ``full=False``;
+    Mx, My, Mz, t and Mzr are NaN with ``moments=False``.
     """
 
     Fx: np.ndarray
