@@ -424,17 +424,18 @@ def forces_loop(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, limits, out, moments
         _keep(s, COND_ROWS, o, n)
         _keep(s, LONG_ROWS, _longitudinal_stage(P, Vx, limits, i0, n, s), n)
         _keep(s, LAT_ROWS, _lateral_stage(P, limits, mf52, n, s), n)
-        if not moments:
-            _keep(s, COMB_ROWS, _combined_stage(P, limits, n, s), n)  # its Fy' is not read
-            _no_moments(s, n)
+        if not moments:  # Fy0 at zero camber serves Fy' (Mz) only
+            s[S_FY0_G0, :n] = 0.0
+        elif _zero_camber(s, S_GAMMA, n):  # Fy0 at zero camber is Fy0 itself: the same call
+            s[S_FY0_G0, :n] = s[S_FY0, :n]
         else:
-            if _zero_camber(s, S_GAMMA, n):  # Fy0 at zero camber is Fy0 itself: the same call
-                s[S_FY0_G0, :n] = s[S_FY0, :n]
-            else:
-                _keep(s, LAT_G0_ROWS, _lateral_zero_camber_stage(P, limits, mf52, n, s), n)
-            _keep(s, COMB_ROWS, _combined_stage(P, limits, n, s), n)
+            _keep(s, LAT_G0_ROWS, _lateral_zero_camber_stage(P, limits, mf52, n, s), n)
+        _keep(s, COMB_ROWS, _combined_stage(P, limits, n, s), n)
+        if moments:
             _keep(s, MZ_ROWS, _aligning_stage(P, Vx, limits, mf52, i0, n, s), n)
             _keep(s, MOM_ROWS, _moments_stage(P, kappa, Vx, mf52, i0, n, s), n)
+        else:
+            _no_moments(s, n)
         for k in range(N_FORCES):
             out[k, i0 : i0 + n] = s[k, :n]
 
@@ -455,7 +456,9 @@ def forces_loop_modes(P, Fz, kappa, alpha, gamma, Vx, p, T, phit, omega, limits,
         _keep(s, LONG_ROWS, _longitudinal_stage_modes(P, Vx, limits, i0, n, s), n)
         o = _lateral_stage_modes(P, Vx, limits, mf52, turn_slip, alpha_star, i0, n, s)
         _keep(s, LAT_ROWS, o, n)
-        if _zero_camber(s, S_GAMMA_S, n):
+        if not moments:  # Fy0 at zero camber serves Fy' (Mz) only
+            s[S_FY0_G0, :n] = 0.0
+        elif _zero_camber(s, S_GAMMA_S, n):
             s[S_FY0_G0, :n] = s[S_FY0, :n]
         else:
             o = _lateral_zero_camber_stage_modes(P, Vx, limits, mf52, turn_slip, alpha_star, i0,
