@@ -157,6 +157,9 @@ def test_relaxation_is_named(model):
     assert names[0] == "relaxation", diag.details["log"]
     assert 0.1 < diag.effects[0].parameters["sigma_alpha_m"] < 2.0
     assert "none" not in names
+    # a look-alike is never a named word, and what it explained alone is a share
+    assert diag.look_alikes.keys().isdisjoint(names), diag.look_alikes
+    assert all(0.0 < v <= 1.0 for v in diag.look_alikes.values()), diag.look_alikes
     fit = diag.fit
     assert fit["heldout_improved"]["Fy"]["rmse"] < fit["heldout_baseline"]["Fy"]["rmse"]
 
@@ -166,6 +169,12 @@ def test_delay_is_told_from_relaxation(model):
     wheels, _ = _session(model, {"delay": True})
     diag = diagnose(wheels, model, seed=0)
     assert diag.effects[0].name == "time_delay", diag.details["log"]
+    # A relaxation is a lag too: alone it explains much of a delay, beside it nothing; the
+    # diagnosis says the recording does not tell the two apart there, in text and JSON.
+    assert diag.look_alikes.get("relaxation", 0.0) > 0.3, diag.details["log"]
+    assert {"name": "relaxation", "explained_alone": diag.look_alikes["relaxation"]} in (
+        diag.to_json()["look_alikes"]
+    )
     # A pure delay and the DAQ filter's lag add at low frequency: the rig's 20 ms in all.
     p = diag.effects[0].parameters
     assert p["tau_delay_s"] + p["tau_filter_s"] == pytest.approx(0.02, abs=0.005)

@@ -153,6 +153,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {i}. {e.name}{tag} on {e.channel}")
         print(f"     where: {e.where}")
         print(f"     evidence: {e.evidence}")
+    if diag.look_alikes:
+        alike = ", ".join(f"{w} ({share:.0%} alone)" for w, share in diag.look_alikes.items())
+        print(f"  look-alikes (better than the baseline alone, not beside the named): {alike}")
     for ch in diag.fit["heldout_baseline"]:
         a = diag.fit["heldout_baseline"][ch]["rmse"]
         b = diag.fit["heldout_improved"][ch]["rmse"]

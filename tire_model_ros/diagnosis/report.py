@@ -163,6 +163,25 @@ def effect_sentence(effect: Any) -> str:
     return "\n".join(lines)
 
 
+def look_alike_lines(alike: Mapping[str, float] | Sequence[Mapping[str, Any]]) -> list[str]:
+    """The words this recording does not tell from the named effects (a diagnosis' dict, or
+    its JSON list), as a paragraph; none: no lines."""
+    if isinstance(alike, Mapping):
+        pairs = list(alike.items())
+    else:
+        pairs = [(str(a["name"]), float(a["explained_alone"])) for a in alike]
+    if not pairs:
+        return []
+    listed = ", ".join(f"`{w}` ({share:.0%} of the baseline's error alone)" for w, share in pairs)
+    return [
+        "",
+        f"Look-alikes: {listed}. Each predicted the held-out sweeps better than the baseline "
+        "alone, but nothing beyond the effects above: this recording does not tell it from "
+        "them (a programme that varies what separates them, e.g. the speed for a delay "
+        "against a relaxation, would).",
+    ]
+
+
 def fit_table(fit: Mapping[str, Any]) -> list[str]:
     """The Markdown fit table: before/after on the fitted and on the held-out sweeps."""
     channels = [c for c in CHANNELS if c in (fit.get("baseline") or {})]
@@ -235,6 +254,7 @@ def _markdown(
     lines += [summary_line(effects), ""]
     lines += ["## Effects", ""]
     lines += [f"{i}. {effect_sentence(e)}" for i, e in enumerate(effects, 1)] or ["(none listed)"]
+    lines += look_alike_lines(_get(diag, "look_alikes", {}) or {})
     per_wheel = _get(diag, "wheels", {}) or {}
     if len(per_wheel) > 1:  # a car: each wheel's own diagnosis under the summary
         lines += ["", "### Per wheel", ""]

@@ -88,6 +88,10 @@ class Selection:
     explained_per_wheel: dict[Key, dict[str, float]]  # the same, on each wheel
     accepted: dict[Key, Joint]  # the step that admitted each
     log: list[str]
+    # Words the recording does not tell from the chosen effects: a model of each predicted the
+    # held-out sweeps significantly better than the baseline alone, and added to the chosen
+    # ones at the last step, not significantly better (its share alone, as ``explained``)
+    look_alikes: dict[str, float] = field(default_factory=dict)
 
 
 def _key(m: EffectModel) -> Key:
@@ -224,12 +228,15 @@ def search(
     alone: dict[Key, float] = {}  # what each explains added to the baseline alone
     alone_wheel: dict[Key, dict[str, float]] = {}  # ... and on each wheel
     runner_up: dict[Key, Key | None] = {}  # the next-ranked effect of another word at its step
+    first: list[Joint] = []  # step 0's trials: each effect added to the baseline alone
+    joined: list[Key] = []  # every effect the forward steps admitted
     for step in range(MAX_EFFECTS):
         words = {_word(library, k) for k in cur.keys}
         trials = [
             joint_add(cur, k, ms) for k, ms in library.items() if _word(library, k) not in words
         ]
         if step == 0:
+            first = trials
             alone = {t.keys[-1]: _share(base.score, t.score, base.score) for t in trials}
             alone_wheel = {
                 t.keys[-1]: {
@@ -256,6 +263,7 @@ def search(
         full.notes = best.notes
         cur = full if full.score.rms <= best.score.rms else best
         accepted[key] = cur
+        joined.append(key)
         log.append(f"accepted {_name(library, key)}")
     cur = _swap(cur, accepted, runner_up, library, log)
     cur, unique, per_wheel = _backward(cur, base, log, library)
@@ -267,7 +275,32 @@ def search(
         for k in cur.keys
     }
     chosen = sorted(cur.keys, key=lambda k: -explained[k])
-    return Selection(base, cur, chosen, explained, explained_wheel, accepted, log)
+    gone = [k for k in joined if k not in cur.keys]  # swapped or dropped: the others explain it
+    alike = _look_alikes(first, trials if cur.keys else [], gone, cur.keys, alone, library)
+    return Selection(base, cur, chosen, explained, explained_wheel, accepted, log, alike)
+
+
+def _look_alikes(
+    first: Sequence[Joint],
+    last: Sequence[Joint],
+    gone: Sequence[Key],
+    chosen: Sequence[Key],
+    alone: dict[Key, float],
+    library: dict[Key, dict[str, EffectModel]],
+) -> dict[str, float]:
+    """Per word not chosen, the largest share alone of its models that were significant
+    added to the baseline (``first``) and not beside the chosen ones at the last step
+    (``last``), or joined and then gave way to them (``gone``): what the chosen effects
+    already explain, in this recording's programme."""
+    named = {_word(library, k) for k in chosen}
+    significant = {t.keys[-1] for t in first if t.vs is not None and t.vs.significant}
+    shadowed = [t.keys[-1] for t in last if t.vs is not None and not t.vs.significant]
+    out: dict[str, float] = {}
+    for key in [*shadowed, *gone]:
+        word = _word(library, key)
+        if key in significant and word not in named:
+            out[word] = max(out.get(word, -1.0), alone[key])
+    return out
 
 
 def make_library(

@@ -90,9 +90,22 @@ class Diagnosis:
 
     # --- outputs -----------------------------------------------------------------------------
 
+    @property
+    def look_alikes(self) -> dict[str, float]:
+        """Words the recording does not tell from the named effects, strongest first: each
+        alone predicted the held-out sweeps significantly better than the baseline (its share
+        of the baseline's held-out mean square error, as ``explained``), beside the named
+        effects not (:class:`.search.Selection`)."""
+        found = self.selection.look_alikes if self.selection is not None else {}
+        return dict(sorted(found.items(), key=lambda kv: -kv[1]))
+
     def to_json(self) -> dict[str, Any]:
-        """The INTERFACE.md diagnosis object (and, for several wheels, each wheel's)."""
+        """The INTERFACE.md diagnosis object (and, for several wheels, each wheel's; the
+        look-alikes of the named effects)."""
         out: dict[str, Any] = {"effects": [e.to_json() for e in self.effects], "fit": self.fit}
+        out["look_alikes"] = [
+            {"name": w, "explained_alone": share} for w, share in self.look_alikes.items()
+        ]
         if len(self.wheels) > 1:
             out["wheels"] = {p: w.to_json() for p, w in self.wheels.items()}
         return out
