@@ -592,6 +592,7 @@ def test_cli_on_a_null_bag_names_none_and_writes_outputs(model, tmp_path):
     doc = json.loads(out_json.read_text())
     _check_json(doc)
     assert [e["name"] for e in doc["effects"]] == ["none"], res.stdout
+    assert doc["look_alikes"] == [] and "look-alikes" not in res.stdout  # of nothing named
     assert "none" in res.stdout
     ref = json.loads(ref_json.read_text())
     for ch in ("Fx", "Fy"):

@@ -90,7 +90,8 @@ class Selection:
     log: list[str]
     # Words the recording does not tell from the chosen effects: a model of each predicted the
     # held-out sweeps significantly better than the baseline alone, and added to the chosen
-    # ones at the last step, not significantly better (its share alone, as ``explained``)
+    # ones at the last step not significantly better, or joined and then gave way to them
+    # (its share alone, as ``explained``); none where nothing is chosen
     look_alikes: dict[str, float] = field(default_factory=dict)
 
 
@@ -276,7 +277,7 @@ def search(
     }
     chosen = sorted(cur.keys, key=lambda k: -explained[k])
     gone = [k for k in joined if k not in cur.keys]  # swapped or dropped: the others explain it
-    alike = _look_alikes(first, trials if cur.keys else [], gone, cur.keys, alone, library)
+    alike = _look_alikes(first, trials, gone, cur.keys, alone, library) if cur.keys else {}
     return Selection(base, cur, chosen, explained, explained_wheel, accepted, log, alike)
 
 
