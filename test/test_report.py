@@ -129,7 +129,7 @@ def test_a_worse_final_heldout_is_said_in_words():
 def test_look_alikes_are_said_from_a_diagnosis_or_its_json():
     """The words a recording does not tell from the named effects read the same from the
     diagnosis' dict and from its JSON list, strongest first as given; none: no paragraph."""
-    from tire_model_ros.diagnosis.report import look_alike_lines
+    from tire_model_ros.diagnosis.report import look_alike_lines, look_alike_summary
 
     as_dict = look_alike_lines({"time_delay": 0.884, "temperature": 0.146})
     as_json = look_alike_lines(
@@ -141,4 +141,5 @@ def test_look_alikes_are_said_from_a_diagnosis_or_its_json():
     assert as_dict == as_json
     text = as_dict[-1]
     assert "`time_delay` (88% of" in text and text.index("time_delay") < text.index("temperature")
-    assert look_alike_lines({}) == look_alike_lines([]) == []
+    assert look_alike_lines({}) == look_alike_lines([]) == [] and look_alike_summary({}) == ""
+    assert look_alike_summary({"time_delay": 0.884}).endswith(": time_delay (88% alone)")

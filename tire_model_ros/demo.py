@@ -187,7 +187,7 @@ def step_diagnose(bag: Path, tir: Path, out: Path) -> tuple[Wheels, Diagnosis, P
     t0 = time.monotonic()
     diag = diagnose(list(wheels.values()), TireModel.from_file(tir))
     say("2", f"done in {time.monotonic() - t0:.0f} s")
-    from tire_model_ros.diagnosis.report import fmt_param
+    from tire_model_ros.diagnosis.report import fmt_param, look_alike_summary
 
     for i, e in enumerate(diag.effects, 1):
         params = ", ".join(
@@ -202,6 +202,8 @@ def step_diagnose(bag: Path, tir: Path, out: Path) -> tuple[Wheels, Diagnosis, P
         )
         say("2", f"   where: {_short(e.where)}")
         say("2", f"   evidence: {_short(e.evidence)}")
+    if diag.look_alikes:
+        say("2", look_alike_summary(diag.look_alikes))
     fit = diag.fit
     for c, unit, digits in (("Fx", "N", 0), ("Fy", "N", 0), ("Mz", "N m", 1)):
         b = fit.get("heldout_baseline", {}).get(c, {}).get("rmse")

@@ -163,6 +163,14 @@ def effect_sentence(effect: Any) -> str:
     return "\n".join(lines)
 
 
+def look_alike_summary(alike: Mapping[str, float]) -> str:
+    """One line naming the look-alikes of a diagnosis ('' when there are none)."""
+    if not alike:
+        return ""
+    listed = ", ".join(f"{w} ({share:.0%} alone)" for w, share in alike.items())
+    return f"look-alikes (better than the baseline alone, not beside the named): {listed}"
+
+
 def look_alike_lines(alike: Mapping[str, float] | Sequence[Mapping[str, Any]]) -> list[str]:
     """The words this recording does not tell from the named effects (a diagnosis' dict, or
     its JSON list), as a paragraph; none: no lines."""
