@@ -17,7 +17,8 @@ Scoring (printed per generator, and totals; written as proof.json / proof.md):
   the mean square force change the effect makes, Fx and Fy together); a null must be ``none``;
 - all named: in multi-effect recordings, every true effect is among the named (also counted
   over the effects that change the forces by at least half the noise, RMS: the diagnosis names
-  none smaller by design);
+  none smaller by design); a missed one the diagnosis listed as a look-alike of the named is
+  counted apart, never as named;
 - false effects on nulls: effects named on null recordings (recordings with real-world
   imperfections that are not missing physics);
 - held-out RMSE (root-sum-square of Fx and Fy) before and after; the floor (the true physics'
@@ -65,6 +66,7 @@ class Outcome:
     concealed: list[str] = field(default_factory=list)
     sizes: list[float] = field(default_factory=list)  # per true effect: ms_N2 / noise variance
     named: list[str] = field(default_factory=list)
+    look_alikes: list[str] = field(default_factory=list)  # words said not told from the named
     before: float = math.nan  # held-out RMSE, root-sum-square of Fx and Fy [N]
     after: float = math.nan
     clean_before: float = math.nan  # against the noise-free twin (model error)
@@ -98,6 +100,12 @@ class Outcome:
         """True effects whose RMS change of the forces is at least half the force noise's
         (ms_N2 >= NOTICEABLE x its variance); the diagnosis names none below that by design."""
         return [n for n, v in zip(self.truth, self.sizes, strict=False) if v >= NOTICEABLE]
+
+    @property
+    def missed_alike(self) -> int:
+        """True effects not named but listed as look-alikes of the named (not counted as
+        named: the diagnosis says the recording does not tell them apart)."""
+        return len([n for n in self.truth if n not in self.named and n in self.look_alikes])
 
     @property
     def false_on_null(self) -> int:
@@ -169,6 +177,7 @@ def run_one(gen: str, case: str, seed: int, tmp: Path, out: Path) -> Outcome:
                      "--reference-json", str(ref_json)], DIAGNOSE_TIMEOUT_S, log)  # fmt: skip
         doc, ref = json.loads(diag_json.read_text()), json.loads(ref_json.read_text())
         o.named = [e["name"] for e in doc["effects"]]
+        o.look_alikes = [a["name"] for a in doc.get("look_alikes", [])]
         o.wheels = max(len(doc.get("wheels") or {}), 1)
         o.before, o.after = (
             _rss(doc["fit"], "heldout_baseline"),
@@ -209,6 +218,7 @@ def table(outs: list[Outcome]) -> list[str]:
     for o in outs:
         truth = ", ".join(t + (" (c)" if t in o.concealed else "") for t in o.truth) or "none"
         named = "ERROR: " + o.error[:80] if o.error else ", ".join(o.named)
+        named += f" (look-alikes: {', '.join(o.look_alikes)})" if o.look_alikes else ""
         lines.append(
             f"| {o.case} s{o.seed} | {truth} | {named} | {yes[o.first_right]} | "
             f"{o.found}/{len(o.truth) if o.truth else 0} | {_fmt(o.before)} -> {_fmt(o.after)} "
@@ -234,6 +244,8 @@ def totals(outs: list[Outcome]) -> dict[str, object]:
         # the same, of the effects that change the forces by half the noise or more
         "multi_noticeable_effects": f"{sum(len(set(o.visible) & set(o.named)) for o in multi)}/"
         f"{sum(len(o.visible) for o in multi)}",
+        # ... and of those missed, the ones the diagnosis listed as look-alikes of the named
+        "multi_missed_listed_as_look_alikes": sum(o.missed_alike for o in multi),
         "nulls_clean": f"{sum(o.false_on_null == 0 for o in nulls)}/{len(nulls)}",
         "false_effects_on_nulls": sum(o.false_on_null for o in nulls),
         "halved_where_floor_allows": f"{sum(bool(o.halved) for o in can)}/{len(can)}",
