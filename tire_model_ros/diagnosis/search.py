@@ -229,7 +229,7 @@ def search(
     alone: dict[Key, float] = {}  # what each explains added to the baseline alone
     alone_wheel: dict[Key, dict[str, float]] = {}  # ... and on each wheel
     runner_up: dict[Key, Key | None] = {}  # the next-ranked effect of another word at its step
-    first: list[Joint] = []  # step 0's trials: each effect added to the baseline alone
+    significant_alone: set[Key] = set()  # the effects significant added to the baseline alone
     joined: list[Key] = []  # every effect the forward steps admitted
     for step in range(MAX_EFFECTS):
         words = {_word(library, k) for k in cur.keys}
@@ -237,7 +237,9 @@ def search(
             joint_add(cur, k, ms) for k, ms in library.items() if _word(library, k) not in words
         ]
         if step == 0:
-            first = trials
+            significant_alone = {
+                t.keys[-1] for t in trials if t.vs is not None and t.vs.significant
+            }
             alone = {t.keys[-1]: _share(base.score, t.score, base.score) for t in trials}
             alone_wheel = {
                 t.keys[-1]: {
@@ -277,12 +279,14 @@ def search(
     }
     chosen = sorted(cur.keys, key=lambda k: -explained[k])
     gone = [k for k in joined if k not in cur.keys]  # swapped or dropped: the others explain it
-    alike = _look_alikes(first, trials, gone, cur.keys, alone, library) if cur.keys else {}
+    alike = (
+        _look_alikes(significant_alone, trials, gone, cur.keys, alone, library) if cur.keys else {}
+    )
     return Selection(base, cur, chosen, explained, explained_wheel, accepted, log, alike)
 
 
 def _look_alikes(
-    first: Sequence[Joint],
+    significant: set[Key],
     last: Sequence[Joint],
     gone: Sequence[Key],
     chosen: Sequence[Key],
@@ -290,11 +294,10 @@ def _look_alikes(
     library: dict[Key, dict[str, EffectModel]],
 ) -> dict[str, float]:
     """Per word not chosen, the largest share alone of its models that were significant
-    added to the baseline (``first``) and not beside the chosen ones at the last step
+    added to the baseline (``significant``) and not beside the chosen ones at the last step
     (``last``), or joined and then gave way to them (``gone``): what the chosen effects
     already explain, in this recording's programme."""
     named = {_word(library, k) for k in chosen}
-    significant = {t.keys[-1] for t in first if t.vs is not None and t.vs.significant}
     shadowed = [t.keys[-1] for t in last if t.vs is not None and not t.vs.significant]
     out: dict[str, float] = {}
     for key in [*shadowed, *gone]:
