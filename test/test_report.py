@@ -142,4 +142,6 @@ def test_look_alikes_are_said_from_a_diagnosis_or_its_json():
     text = as_dict[-1]
     assert "`time_delay` (88% of" in text and text.index("time_delay") < text.index("temperature")
     assert look_alike_lines({}) == look_alike_lines([]) == [] and look_alike_summary({}) == ""
+    # a hand-edited JSON entry without its share still names the word, without a number
+    assert "Look-alikes: `drift`. Each" in look_alike_lines([{"name": "drift"}])[-1]
     assert look_alike_summary({"time_delay": 0.884}).endswith(": time_delay (88% alone)")

@@ -177,10 +177,15 @@ def look_alike_lines(alike: Mapping[str, float] | Sequence[Mapping[str, Any]]) -
     if isinstance(alike, Mapping):
         pairs = list(alike.items())
     else:
-        pairs = [(str(a["name"]), float(a["explained_alone"])) for a in alike]
+        pairs = [(str(_get(a, "name", "?")), _get(a, "explained_alone")) for a in alike]
     if not pairs:
         return []
-    listed = ", ".join(f"`{w}` ({share:.0%} of the baseline's error alone)" for w, share in pairs)
+    listed = ", ".join(
+        f"`{w}` ({share:.0%} of the baseline's error alone)"
+        if isinstance(share, (int, float)) and math.isfinite(share)
+        else f"`{w}`"
+        for w, share in pairs
+    )
     return [
         "",
         f"Look-alikes: {listed}. Each predicted the held-out sweeps better than the baseline "
