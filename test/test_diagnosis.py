@@ -31,7 +31,7 @@ from tire_model_ros.diagnosis.result import MZ_COEFS
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects
 from tire_model_ros.rig import simulate_session
-from tire_model_ros.vocabulary import EFFECT_WORDS
+from tire_model_ros.vocabulary import EFFECT_WORDS, TOLD_APART_BY
 
 
 def _session(model, effects, omit=(), seed=3):
@@ -172,9 +172,13 @@ def test_delay_is_told_from_relaxation(model):
     # A relaxation is a lag too: alone it explains much of a delay, beside it nothing; the
     # diagnosis says the recording does not tell the two apart there, in text and JSON.
     assert diag.look_alikes.get("relaxation", 0.0) > 0.3, diag.details["log"]
-    assert {"name": "relaxation", "explained_alone": diag.look_alikes["relaxation"]} in (
-        diag.to_json()["look_alikes"]
-    )
+    # ... and what would tell them apart (the speed)
+    assert {
+        "name": "relaxation",
+        "explained_alone": diag.look_alikes["relaxation"],
+        "told_apart_by": TOLD_APART_BY["relaxation"],
+    } in diag.to_json()["look_alikes"]
+    assert "two speeds" in TOLD_APART_BY["relaxation"]
     # A pure delay and the DAQ filter's lag add at low frequency: the rig's 20 ms in all.
     p = diag.effects[0].parameters
     assert p["tau_delay_s"] + p["tau_filter_s"] == pytest.approx(0.02, abs=0.005)

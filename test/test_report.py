@@ -128,20 +128,30 @@ def test_a_worse_final_heldout_is_said_in_words():
 
 def test_look_alikes_are_said_from_a_diagnosis_or_its_json():
     """The words a recording does not tell from the named effects read the same from the
-    diagnosis' dict and from its JSON list, strongest first as given; none: no paragraph."""
+    diagnosis' dict and from its JSON list, strongest first as given, each with what would
+    tell it from the named (and what would show the named); none: no paragraph."""
     from tire_model_ros.diagnosis.report import look_alike_lines, look_alike_summary
+    from tire_model_ros.vocabulary import EFFECT_WORDS, TOLD_APART_BY
 
-    as_dict = look_alike_lines({"time_delay": 0.884, "temperature": 0.146})
+    as_dict = look_alike_lines({"time_delay": 0.884, "temperature": 0.146}, ["relaxation"])
     as_json = look_alike_lines(
         [
             {"name": "time_delay", "explained_alone": 0.884},
             {"name": "temperature", "explained_alone": 0.146},
-        ]
+        ],
+        ["relaxation"],
     )
     assert as_dict == as_json
-    text = as_dict[-1]
+    text = "\n".join(as_dict)
     assert "`time_delay` (88% of" in text and text.index("time_delay") < text.index("temperature")
+    assert as_dict[-3:] == [
+        f"- `time_delay`: {TOLD_APART_BY['time_delay']}.",
+        f"- `temperature`: {TOLD_APART_BY['temperature']}.",
+        f"- `relaxation` (named): {TOLD_APART_BY['relaxation']}.",
+    ]
     assert look_alike_lines({}) == look_alike_lines([]) == [] and look_alike_summary({}) == ""
     # a hand-edited JSON entry without its share still names the word, without a number
-    assert "Look-alikes: `drift`. Each" in look_alike_lines([{"name": "drift"}])[-1]
+    assert "Look-alikes: `drift`. Each" in "\n".join(look_alike_lines([{"name": "drift"}]))
     assert look_alike_summary({"time_delay": 0.884}).endswith(": time_delay (88% alone)")
+    # every word for a physics says what shows it
+    assert set(TOLD_APART_BY) == set(EFFECT_WORDS) - {"none"}

@@ -97,6 +97,29 @@ EFFECT_WORDS: Final = (
     "none",
 )
 
+#: What in a programme shows each word's physics and not its look-alikes (PHYSICS.md, "tells it
+#: apart"): what to record when a diagnosis says a recording does not tell two words apart.
+TOLD_APART_BY: Final[dict[str, str]] = {
+    "temperature": "a cooling pause (a heated tyre's grip comes back), or a recorded tread "
+    "temperature",
+    "pressure": "a recorded inflation pressure (a sealed tyre's follows its gas temperature, a "
+    "leak's falls with no heat)",
+    "relaxation": "sweeps at two speeds (its loop grows with the slip rate over the speed)",
+    "camber": "sweeps at two or more cambers (it grows linearly with the camber from the first "
+    "sweep)",
+    "combined_slip": "pure-slip sweeps beside combined ones (it acts only where both slips are "
+    "non-zero)",
+    "speed": "one condition at two speeds with the tyre in the same state (friction that "
+    "follows the speed changes at once, not with the energy put in)",
+    "offset": "sweeps through zero slip at several cambers (an offset stays, whatever the camber)",
+    "time_delay": "sweeps at two speeds (a delay's loop grows with the slip rate alone, at any "
+    "speed)",
+    "drift": "a reference sweep repeated after a cooling pause (wear does not come back, heat "
+    "does)",
+    "sidewall_contact": "sweeps past the peak at low pressure and high load, and at high "
+    "pressure (only the deflected tyre loses)",
+}
+
 # ----------------------------------------------------------------------------- constants
 
 NS_PER_S: Final = 1_000_000_000

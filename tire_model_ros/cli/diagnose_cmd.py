@@ -123,7 +123,7 @@ def node_params(diag: Diagnosis, tirs: dict[str, Path], effects: Path) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from tire_model_ros.diagnosis import diagnose
-    from tire_model_ros.diagnosis.report import heldout_warnings, look_alike_summary
+    from tire_model_ros.diagnosis.report import heldout_warnings, look_alike_summary, told_apart
     from tire_model_ros.model import write_tir
 
     out_tir = args.out_tir or (str(Path(args.report) / "improved.tir") if args.report else None)
@@ -154,7 +154,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"     where: {e.where}")
         print(f"     evidence: {e.evidence}")
     if diag.look_alikes:
-        print(f"  {look_alike_summary(diag.look_alikes)}")
+        print(f"  {look_alike_summary(diag.look_alikes)}; what would tell them apart:")
+        for line in told_apart(list(diag.look_alikes), [e.name for e in diag.effects]):
+            print(f"    {line}")
     for ch in diag.fit["heldout_baseline"]:
         a = diag.fit["heldout_baseline"][ch]["rmse"]
         b = diag.fit["heldout_improved"][ch]["rmse"]

@@ -33,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tire_model_ros.atomic import replace_path
-from tire_model_ros.vocabulary import DIAGNOSED_CHANNELS
+from tire_model_ros.vocabulary import DIAGNOSED_CHANNELS, TOLD_APART_BY
 
 # The channels the diagnosis compares, in report order; each is plotted over its own slip.
 CHANNELS = DIAGNOSED_CHANNELS
@@ -171,9 +171,12 @@ def look_alike_summary(alike: Mapping[str, float]) -> str:
     return f"look-alikes (better than the baseline alone, not beside the named): {listed}"
 
 
-def look_alike_lines(alike: Mapping[str, float] | Sequence[Mapping[str, Any]]) -> list[str]:
+def look_alike_lines(
+    alike: Mapping[str, float] | Sequence[Mapping[str, Any]], named: Sequence[str] = ()
+) -> list[str]:
     """The words this recording does not tell from the named effects (a diagnosis' dict, or
-    its JSON list), as a paragraph; none: no lines."""
+    its JSON list), as a paragraph, with what would tell each apart (of the look-alikes and of
+    the ``named`` words, :data:`~tire_model_ros.vocabulary.TOLD_APART_BY`); none: no lines."""
     if isinstance(alike, Mapping):
         pairs = list(alike.items())
     else:
@@ -186,12 +189,21 @@ def look_alike_lines(alike: Mapping[str, float] | Sequence[Mapping[str, Any]]) -
         else f"`{w}`"
         for w, share in pairs
     )
-    return [
+    lines = [
         "",
         f"Look-alikes: {listed}. Each predicted the held-out sweeps better than the baseline "
         "alone, but nothing beyond the effects above: this recording does not tell it from "
-        "them (a programme that varies what separates them, e.g. the speed for a delay "
-        "against a relaxation, would).",
+        "them. What would:",
+        "",
+    ]
+    return lines + [f"- {line}" for line in told_apart([w for w, _ in pairs], named, "`")]
+
+
+def told_apart(alike: Sequence[str], named: Sequence[str], quote: str = "") -> list[str]:
+    """What in a programme would show each look-alike and each named word (one line each)."""
+    words = [(w, "") for w in alike] + [(w, " (named)") for w in named if w not in alike]
+    return [
+        f"{quote}{w}{quote}{tag}: {TOLD_APART_BY[w]}." for w, tag in words if w in TOLD_APART_BY
     ]
 
 
@@ -267,7 +279,8 @@ def _markdown(
     lines += [summary_line(effects), ""]
     lines += ["## Effects", ""]
     lines += [f"{i}. {effect_sentence(e)}" for i, e in enumerate(effects, 1)] or ["(none listed)"]
-    lines += look_alike_lines(_get(diag, "look_alikes", {}) or {})
+    named = [str(_get(e, "name", "")) for e in effects]
+    lines += look_alike_lines(_get(diag, "look_alikes", {}) or {}, named)
     per_wheel = _get(diag, "wheels", {}) or {}
     if len(per_wheel) > 1:  # a car: each wheel's own diagnosis under the summary
         lines += ["", "### Per wheel", ""]

@@ -12,6 +12,7 @@ from tire_model_ros.blas import one_blas_thread
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import Effects
 from tire_model_ros.recording.series import WheelSeries
+from tire_model_ros.vocabulary import TOLD_APART_BY
 
 from .effects.base import Array, Index
 from .predict import predict
@@ -104,7 +105,8 @@ class Diagnosis:
         look-alikes of the named effects)."""
         out: dict[str, Any] = {"effects": [e.to_json() for e in self.effects], "fit": self.fit}
         out["look_alikes"] = [
-            {"name": w, "explained_alone": share} for w, share in self.look_alikes.items()
+            {"name": w, "explained_alone": share, "told_apart_by": TOLD_APART_BY.get(w, "")}
+            for w, share in self.look_alikes.items()
         ]
         if len(self.wheels) > 1:
             out["wheels"] = {p: w.to_json() for p, w in self.wheels.items()}
