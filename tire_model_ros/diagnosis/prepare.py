@@ -30,6 +30,8 @@ MIN_SAMPLES = 50
 MIN_BLOCKS = 6  # fewer whole sweeps than this: time blocks instead
 TIME_BLOCK_S = (2.0, 15.0)  # a time block spans 4 correlation times of the residual, within
 SMOOTH_WINDOWS = (7, 9, 11, 15, 21, 31, 41, 61)  # candidate input smoother windows [samples]
+SHORTER_WINDOWS = (1, 5)  # ... and below them, which only the forces may ask for (see shorten)
+SHORTEN_ROWS = 20000  # samples the forces are compared on when the windows are shortened
 LEFT_OUT = 1  # neighbours on each side a sample is predicted without (noise correlation)
 SMOOTHED = ("kappa", "alpha", "gamma", "Fz", "V")  # recorded inputs smoothed (p, T: not)
 FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows are redundant)
@@ -132,13 +134,74 @@ def smooth(x: Array) -> tuple[Array, int]:
         cv = float(np.mean(r * r))
         if cv < best_cv:
             best, best_cv = w, cv
-    if best == 1:
-        return x.copy(), 1
-    return np.asarray(savgol_filter(x, best, 2, mode="interp"), dtype=np.float64), best
+    return savgol(x, best), best
 
 
-def prepare_wheel(s: WheelSeries, model: TireModel, rng: np.random.Generator) -> Wheel:
-    """The diagnosis' view of one recorded wheel.
+def savgol(x: Array, w: int) -> Array:
+    """Zero-phase quadratic Savitzky-Golay smoothing over ``w`` samples (1: a copy)."""
+    if w <= 1 or len(x) <= w:
+        return x.copy()
+    return np.asarray(savgol_filter(x, w, 2, mode="interp"), dtype=np.float64)
+
+
+def shorten(
+    raw: dict[str, Array],
+    windows: dict[str, int],
+    model: TireModel,
+    meas: dict[str, Array],
+    optional: dict[str, Array | None],
+) -> dict[str, int]:
+    """Each input's window shortened where the file model's forces ask for it.
+
+    The cross-validation of :func:`smooth` weighs an input's error alike everywhere and, by
+    predicting each sample without its neighbours, favours long windows where the input moves
+    fast. The forces weigh it by the tyre's sensitivity, which is largest there (a car's load
+    transfer, a brake's slip): the file model's Fx and Fy against the measured ones (whose own
+    noise does not depend on the window) tell how much each window distorts and lets through.
+    Channel by channel, a shorter window is taken when those forces are predicted better with
+    it (a car's loads: a file model 7 N off its own true forces on inputs smoothed over 70 ms).
+    Never a longer one: a longer window's zero-phase smoothing would take a relaxation's or a
+    delay's filtering out of the forces before any model of it is tried.
+    """
+    forces = [ch for ch in ("Fx", "Fy") if ch in meas]
+    if not forces:
+        return windows
+    ok = np.all([np.isfinite(meas[ch]) for ch in forces], axis=0)
+    rows = np.flatnonzero(ok)
+    rows = rows[:: max(1, len(rows) // SHORTEN_ROWS)]
+    if len(rows) == 0:
+        return windows
+    out = dict(windows)
+    smoothed = {k: savgol(raw[k], w)[rows] for k, w in out.items()}
+    opt = {k: (None if v is None else v[rows]) for k, v in optional.items()}
+
+    def sse(inputs: dict[str, Array]) -> float:
+        o = model.evaluate(inputs["Fz"], inputs["kappa"], inputs["alpha"], inputs["gamma"],
+                           Vx=inputs["V"], p=opt["p"], T=opt["T"], full=False,
+                           moments=False)  # fmt: skip
+        return float(sum(np.nansum((np.asarray(getattr(o, ch)) - meas[ch][rows]) ** 2)
+                         for ch in forces))  # fmt: skip
+
+    best = sse(smoothed)
+    for key in SMOOTHED:
+        for w in (*SHORTER_WINDOWS, *SMOOTH_WINDOWS):
+            if w >= out[key]:
+                break
+            trial = {**smoothed, key: savgol(raw[key], w)[rows]}
+            e = sse(trial)
+            if e < best:
+                best, out[key], smoothed = e, w, trial
+    return out
+
+
+def prepare_wheel(
+    s: WheelSeries,
+    model: TireModel,
+    rng: np.random.Generator,
+    windows: dict[str, int] | None = None,
+) -> Wheel:
+    """The diagnosis' view of one recorded wheel (``windows``: its inputs' smoother windows,
+    chosen from the recording when not given).
 
     Raises
     ------
@@ -163,9 +226,11 @@ def prepare_wheel(s: WheelSeries, model: TireModel, rng: np.random.Generator) ->
         "p": None if s.p is None else _fill(np.asarray(s.p, float)),
         "T": None if s.T is None else _fill(np.asarray(s.T, float)),
     }
-    windows = {}
+    rawf = {k: np.nan_to_num(np.asarray(raw[k], float)) for k in SMOOTHED}
+    if windows is None:
+        windows = shorten(rawf, {k: smooth(rawf[k])[1] for k in SMOOTHED}, model, meas, inputs)
     for key in SMOOTHED:
-        inputs[key], windows[key] = smooth(np.nan_to_num(np.asarray(raw[key], float)))
+        inputs[key] = savgol(rawf[key], windows[key])
     kappa, alpha = inputs["kappa"], inputs["alpha"]
     assert kappa is not None and alpha is not None
     zero = np.zeros(n)

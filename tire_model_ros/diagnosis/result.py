@@ -137,7 +137,8 @@ def finish(prefix: str, sel: Selection) -> WheelDiagnosis:
     ctx, log = trial.ctx, []  # this wheel's own notes (the selection's log is the recording's)
     w, rows_ab = ctx.wheel, ctx.rows["ab"]
     log.append(
-        "inputs smoothed (zero-phase, window chosen per channel by cross-validation): "
+        "inputs smoothed (zero-phase, window chosen per channel by cross-validation, shortened "
+        "where the file model's forces ask): "
         + ", ".join(f"{k} {n} samples" for k, n in w.smoothing.items())
     )
     models = trial.models
@@ -370,7 +371,8 @@ def reference_context(wd: WheelDiagnosis, twin: WheelSeries) -> Context:
         p=None if w.inputs["p"] is None else twin.p,
         T=None if w.inputs["T"] is None else twin.T,
     )
-    r = prepare_wheel(seen, ctx.model, np.random.default_rng(0))
+    # prepared alike: the recording's own smoother windows
+    r = prepare_wheel(seen, ctx.model, np.random.default_rng(0), w.smoothing)
     r = dataclasses.replace(
         r,
         segments=w.segments,
