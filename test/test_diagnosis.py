@@ -1566,6 +1566,74 @@ def test_the_input_smoother_window_follows_each_channels_noise_and_pace():
     assert set(SMOOTH_WINDOWS) >= {7, 61}
 
 
+Windows = dict[str, int]
+
+
+def _shortened(
+    model: TireModel,
+    Fz: np.ndarray,
+    alpha: np.ndarray,
+    noise: dict[str, np.ndarray],
+    rng: np.random.Generator,
+) -> tuple[Windows, Windows, float, float]:
+    """The cross-validated and the shortened windows of a recording of ``model`` (true
+    inputs plus ``noise``; forces with 20 N of noise), and each's force error against the true
+    forces [N]."""
+    from tire_model_ros.diagnosis.prepare import SMOOTHED, savgol, shorten, smooth
+
+    n = len(Fz)
+    true = {"kappa": np.zeros(n), "alpha": alpha, "gamma": np.zeros(n), "Fz": Fz,
+            "V": np.full(n, 16.7)}  # fmt: skip
+    raw = {k: true[k] + noise.get(k, 0.0) for k in SMOOTHED}
+    o = model.evaluate(Fz, true["kappa"], alpha, true["gamma"], Vx=true["V"], full=False)
+    meas = {ch: np.asarray(getattr(o, ch)) + 20.0 * rng.standard_normal(n) for ch in ("Fx", "Fy")}
+    cv = {k: smooth(raw[k])[1] for k in SMOOTHED}
+    short = shorten(raw, cv, model, meas, {"p": None, "T": None})
+
+    def err(windows: dict[str, int]) -> float:
+        x = {k: savgol(raw[k], windows[k]) for k in SMOOTHED}
+        e = model.evaluate(x["Fz"], x["kappa"], x["alpha"], x["gamma"], Vx=x["V"], full=False)
+        return float(np.sqrt(np.mean((np.asarray(e.Fy) - np.asarray(o.Fy)) ** 2)))
+
+    return cv, short, err(cv), err(short)
+
+
+def test_the_forces_shorten_a_window_that_distorts_a_fast_load(model):
+    """A car's load transfer (here +-1.5 kN in 50 ms, every 1.5 s) with a load cell's 17 N of
+    noise: the cross-validated window rounds it off; the file model's forces against the
+    measured ones ask for a shorter one, and the forces on the inputs so smoothed are nearer
+    the true ones."""
+    from scipy.ndimage import uniform_filter1d
+
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 120.0, 0.01)
+    Fz = 4000.0 + 1500.0 * uniform_filter1d(np.sign(np.sin(2 * np.pi * t / 3.0)), 5)
+    alpha = np.radians(4.0) * np.sin(2 * np.pi * t / 6.0)
+    cv, short, e_cv, e_short = _shortened(
+        model, Fz, alpha, {"Fz": 17.0 * rng.standard_normal(len(t))}, rng
+    )
+    assert short["Fz"] < cv["Fz"], (cv, short)
+    assert e_short < 0.8 * e_cv, (e_cv, e_short)
+    assert all(short[k] <= cv[k] for k in cv), (cv, short)  # never longer
+
+
+def test_the_forces_keep_a_long_window_on_slip_noise_a_daq_coloured(model):
+    """Slow slip-angle sweeps under DAQ-coloured noise (which let a relaxation length fitted
+    to the noise be named on a null): shortening the window would pass that noise into the
+    forces, and the forces do not ask for it."""
+    from scipy.signal import firwin, sawtooth
+
+    rng = np.random.default_rng(6)
+    t = np.arange(0.0, 120.0, 0.01)
+    alpha = np.radians(8.0) * sawtooth(2 * np.pi * t / 8.0, 0.5)  # +-8 deg at 4 deg/s
+    fir = firwin(31, 36.0, fs=100.0)
+    coloured = np.convolve(rng.standard_normal(len(t)), fir, "same") / np.sqrt(fir @ fir)
+    noise = {"alpha": 4e-4 * coloured}
+    cv, short, e_cv, e_short = _shortened(model, np.full(len(t), 4000.0), alpha, noise, rng)
+    assert short["alpha"] >= 9, (cv, short)
+    assert e_short <= e_cv
+
+
 def smooth_fixed(x: np.ndarray, w: int) -> np.ndarray:
     from scipy.signal import savgol_filter
 
