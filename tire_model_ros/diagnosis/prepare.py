@@ -32,6 +32,7 @@ TIME_BLOCK_S = (2.0, 15.0)  # a time block spans 4 correlation times of the resi
 SMOOTH_WINDOWS = (7, 9, 11, 15, 21, 31, 41, 61)  # candidate input smoother windows [samples]
 SHORTER_WINDOWS = (1, 5)  # ... and below them, which only the forces may ask for (see shorten)
 SHORTEN_ROWS = 20000  # samples the forces are compared on when the windows are shortened
+SHORTEN_MARGIN = 0.01  # ... and a shorter window's force RMS must be this much lower (else a tie)
 LEFT_OUT = 1  # neighbours on each side a sample is predicted without (noise correlation)
 SMOOTHED = ("kappa", "alpha", "gamma", "Fz", "V")  # recorded inputs smoothed (p, T: not)
 FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows are redundant)
@@ -158,8 +159,10 @@ def shorten(
     fast. The forces weigh it by the tyre's sensitivity, which is largest there (a car's load
     transfer, a brake's slip): the file model's Fx and Fy against the measured ones (whose own
     noise does not depend on the window) tell how much each window distorts and lets through.
-    Channel by channel, a shorter window is taken when those forces are predicted better with
-    it (a car's loads: a file model 7 N off its own true forces on inputs smoothed over 70 ms).
+    Channel by channel, the shorter window that predicts those forces best is taken when it
+    predicts them better by SHORTEN_MARGIN of their RMS (a car's loads: 8 % better unsmoothed,
+    the file model 13 N off its own true Fx on loads smoothed over 70 ms); within that the two
+    tie and the cross-validated window stands (a rig's camber steps: 0.000 %).
     Never a longer one: a longer window's zero-phase smoothing would take a relaxation's or a
     delay's filtering out of the forces before any model of it is tried.
     """
@@ -182,15 +185,16 @@ def shorten(
         return float(sum(np.nansum((np.asarray(getattr(o, ch)) - meas[ch][rows]) ** 2)
                          for ch in forces))  # fmt: skip
 
-    best = sse(smoothed)
+    current = sse(smoothed)
     for key in SMOOTHED:
-        for w in (*SHORTER_WINDOWS, *SMOOTH_WINDOWS):
-            if w >= out[key]:
-                break
-            trial = {**smoothed, key: savgol(raw[key], w)[rows]}
-            e = sse(trial)
-            if e < best:
-                best, out[key], smoothed = e, w, trial
+        shorter = [w for w in (*SHORTER_WINDOWS, *SMOOTH_WINDOWS) if w < out[key]]
+        trials = {w: {**smoothed, key: savgol(raw[key], w)[rows]} for w in shorter}
+        errs = {w: sse(x) for w, x in trials.items()}
+        if not errs:
+            continue
+        w = min(errs, key=errs.__getitem__)
+        if math.sqrt(errs[w]) <= (1.0 - SHORTEN_MARGIN) * math.sqrt(current):
+            current, out[key], smoothed = errs[w], w, trials[w]
     return out
 
 
