@@ -32,7 +32,9 @@ TIME_BLOCK_S = (2.0, 15.0)  # a time block spans 4 correlation times of the resi
 SMOOTH_WINDOWS = (7, 9, 11, 15, 21, 31, 41, 61)  # candidate input smoother windows [samples]
 SHORTER_WINDOWS = (1, 5)  # ... and below them, which only the forces may ask for (see shorten)
 SHORTEN_ROWS = 20000  # samples the forces are compared on when the windows are shortened
-SHORTEN_MARGIN = 0.01  # ... and a shorter window's force RMS must be this much lower (else a tie)
+# ... and a shorter window's force RMS must be this much lower, else the two tie and the
+# cross-validated window stands (the margin of the engine's Occam rule, search.OCCAM_MARGIN)
+SHORTEN_MARGIN = 0.02
 LEFT_OUT = 1  # neighbours on each side a sample is predicted without (noise correlation)
 SMOOTHED = ("kappa", "alpha", "gamma", "Fz", "V")  # recorded inputs smoothed (p, T: not)
 FIT_ROWS_PER_FOLD = 1500  # model rows per fold used by the fits (100 Hz rows are redundant)
@@ -162,7 +164,8 @@ def shorten(
     Channel by channel, the shorter window that predicts those forces best is taken when it
     predicts them better by SHORTEN_MARGIN of their RMS (a car's loads: 8 % better unsmoothed,
     the file model 13 N off its own true Fx on loads smoothed over 70 ms); within that the two
-    tie and the cross-validated window stands (a rig's camber steps: 0.000 %).
+    tie and the cross-validated window stands (a Flat-Trac's load steps 1.4 %, its camber
+    steps 0.000 %: shortened, each tipped a near-tie of two effects the other way).
     Never a longer one: a longer window's zero-phase smoothing would take a relaxation's or a
     delay's filtering out of the forces before any model of it is tried.
     """
