@@ -162,8 +162,9 @@ def shorten(
     transfer, a brake's slip): the file model's Fx and Fy against the measured ones (whose own
     noise does not depend on the window) tell how much each window distorts and lets through.
     Channel by channel, the shorter window that predicts those forces best is taken when it
-    predicts them better by SHORTEN_MARGIN of their RMS (a car's loads: 8 % better unsmoothed,
-    the file model 13 N off its own true Fx on loads smoothed over 70 ms; a Flat-Trac's load
+    predicts them better by SHORTEN_MARGIN of their RMS (a car's loads: 8 % better unsmoothed;
+    the file model was 13 N off its own true Fx on true inputs smoothed with the windows of
+    the cross-validation, most of it from the loads' 70 ms; a Flat-Trac's load
     steps 2.2 % better over 21 samples than over 61); within that the two tie and the
     cross-validated window stands (its camber steps: 0.000 %, which, shortened anyway, tipped
     a near-tie of camber and pressure).
