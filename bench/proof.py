@@ -245,6 +245,7 @@ def totals(outs: list[Outcome]) -> dict[str, object]:
     can = [o for o in eff if o.attainable]
     times, cpus = [o.seconds for o in outs], [o.cpu for o in outs]
     per_wheel = [o.cpu / o.wheels for o in outs]
+    excess = [o.excess_removed for o in can]
     return {
         "recordings": len(outs),
         "strongest_first": f"{sum(o.first_right for o in eff)}/{len(eff)}",
@@ -260,10 +261,8 @@ def totals(outs: list[Outcome]) -> dict[str, object]:
         "halved_where_floor_allows": f"{sum(bool(o.halved) for o in can)}/{len(can)}",
         "halved_all": f"{sum(bool(o.halved) for o in eff)}/{len(eff)}",
         # how close to the floor, where it allows halving: median and least
-        "excess_over_floor_removed_median": _median([o.excess_removed for o in can]),
-        "excess_over_floor_removed_min": min(
-            (x for o in can if math.isfinite(x := o.excess_removed)), default=math.nan
-        ),
+        "excess_over_floor_removed_median": _median(excess),
+        "excess_over_floor_removed_min": min(_finite(excess), default=math.nan),
         "extra_effects": sum(len(o.extra) for o in eff),
         "errors": sum(bool(o.error) for o in outs),
         "median_diagnosis_s": _median(times),
@@ -273,9 +272,13 @@ def totals(outs: list[Outcome]) -> dict[str, object]:
     }
 
 
+def _finite(xs: list[float]) -> list[float]:
+    return [x for x in xs if math.isfinite(x)]
+
+
 def _median(xs: list[float]) -> float:
-    xs = [x for x in xs if math.isfinite(x)]
-    return statistics.median(xs) if xs else math.nan
+    finite = _finite(xs)
+    return statistics.median(finite) if finite else math.nan
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:

@@ -1579,7 +1579,7 @@ def _shortened(
     """The cross-validated and the shortened windows of a recording of ``model`` (true
     inputs plus ``noise``; forces with 20 N of noise), and each's force error against the true
     forces [N]."""
-    from tire_model_ros.diagnosis.prepare import SMOOTHED, savgol, shorten, smooth
+    from tire_model_ros.diagnosis.prepare import SMOOTHED, cv_window, savgol, shorten
 
     n = len(Fz)
     true = {"kappa": np.zeros(n), "alpha": alpha, "gamma": np.zeros(n), "Fz": Fz,
@@ -1587,7 +1587,7 @@ def _shortened(
     raw = {k: true[k] + noise.get(k, 0.0) for k in SMOOTHED}
     o = model.evaluate(Fz, true["kappa"], alpha, true["gamma"], Vx=true["V"], full=False)
     meas = {ch: np.asarray(getattr(o, ch)) + 20.0 * rng.standard_normal(n) for ch in ("Fx", "Fy")}
-    cv = {k: smooth(raw[k])[1] for k in SMOOTHED}
+    cv = {k: cv_window(raw[k]) for k in SMOOTHED}
     short = shorten(raw, cv, model, meas, {"p": None, "T": None})
 
     def err(windows: dict[str, int]) -> float:

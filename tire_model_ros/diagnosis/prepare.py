@@ -114,8 +114,15 @@ def _left_out_kernel(w: int) -> Array:
 
 
 def smooth(x: Array) -> tuple[Array, int]:
-    """Zero-phase Savitzky-Golay smoothing of a recorded input, its window chosen from the
-    channel itself by cross-validation; returns the smoothed input and the window [samples].
+    """Zero-phase Savitzky-Golay smoothing of a recorded input over :func:`cv_window`'s
+    window; returns the smoothed input and the window [samples]."""
+    w = cv_window(x)
+    return savgol(x, w), w
+
+
+def cv_window(x: Array) -> int:
+    """The Savitzky-Golay window [samples] of a recorded input, chosen from the channel
+    itself by cross-validation (1: none fits).
 
     Recorded slip carries sensor noise; through the slip stiffness it is as large as the force
     noise. Left in, any model that low-passes the inputs (relaxation, a delay's filter) would
@@ -137,7 +144,7 @@ def smooth(x: Array) -> tuple[Array, int]:
         cv = float(np.mean(r * r))
         if cv < best_cv:
             best, best_cv = w, cv
-    return savgol(x, best), best
+    return best
 
 
 def savgol(x: Array, w: int) -> Array:
@@ -187,7 +194,7 @@ def shorten(
         o = model.evaluate(inputs["Fz"], inputs["kappa"], inputs["alpha"], inputs["gamma"],
                            Vx=inputs["V"], p=opt["p"], T=opt["T"], full=False,
                            moments=False)  # fmt: skip
-        return float(sum(np.nansum((np.asarray(getattr(o, ch)) - meas[ch][rows]) ** 2)
+        return float(sum(np.sum((np.asarray(getattr(o, ch)) - meas[ch][rows]) ** 2)
                          for ch in forces))  # fmt: skip
 
     current = sse(smoothed)
@@ -237,7 +244,7 @@ def prepare_wheel(
     }
     rawf = {k: np.nan_to_num(np.asarray(raw[k], float)) for k in SMOOTHED}
     if windows is None:
-        windows = shorten(rawf, {k: smooth(rawf[k])[1] for k in SMOOTHED}, model, meas, inputs)
+        windows = shorten(rawf, {k: cv_window(rawf[k]) for k in SMOOTHED}, model, meas, inputs)
     for key in SMOOTHED:
         inputs[key] = savgol(rawf[key], windows[key])
     kappa, alpha = inputs["kappa"], inputs["alpha"]
