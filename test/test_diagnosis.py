@@ -1588,7 +1588,7 @@ def _shortened(
     o = model.evaluate(Fz, true["kappa"], alpha, true["gamma"], Vx=true["V"], full=False)
     meas = {ch: np.asarray(getattr(o, ch)) + 20.0 * rng.standard_normal(n) for ch in ("Fx", "Fy")}
     cv = {k: cv_window(raw[k]) for k in SMOOTHED}
-    short = shorten(raw, cv, model, meas, {"p": None, "T": None})
+    short = shorten(raw, cv, model, meas, {"p": None, "T": None}, np.zeros(n, dtype=bool))
 
     def err(windows: dict[str, int]) -> float:
         x = {k: savgol(raw[k], windows[k]) for k in SMOOTHED}
@@ -1632,6 +1632,37 @@ def test_the_forces_keep_a_long_window_on_slip_noise_a_daq_coloured(model):
     cv, short, e_cv, e_short = _shortened(model, np.full(len(t), 4000.0), alpha, noise, rng)
     assert short["alpha"] >= 9, (cv, short)
     assert e_short <= e_cv
+
+
+def test_a_nan_stretch_in_an_input_is_bridged_left_out_and_counted(model):
+    """A load cell that sends NaN for 3 s: the load is bridged between its neighbours (never
+    zero, which the smoother would spread into good samples), those samples are fitted and
+    scored on by nothing, and the diagnosis says how many there were."""
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    (w,), _ = _session(model, {})
+    i = np.flatnonzero(w.t - w.t[0] >= 100.0)[:300]
+    Fz = np.array(w.Fz, dtype=float)
+    Fz[i] = np.nan
+    gappy = dataclasses.replace(w, Fz=Fz)
+    pw = prepare_wheel(gappy, model, np.random.default_rng(0))
+    good = prepare_wheel(w, model, np.random.default_rng(0))
+    assert pw.gaps == {"Fz": 300}
+    assert np.flatnonzero(pw.bridged).tolist() == i.tolist()
+    fz = pw.x("Fz")
+    assert np.isfinite(fz).all()
+    lo, hi = sorted((w.Fz[i[0] - 1], w.Fz[i[-1] + 1]))
+    assert lo - 200.0 <= fz[i].min() and fz[i].max() <= hi + 200.0  # no zero-load stretch
+    near = np.r_[i[0] - 100 : i[0], i[-1] + 1 : i[-1] + 101]
+    assert np.max(np.abs(fz[near] - good.x("Fz")[near])) < 200.0  # neighbours unharmed
+    ctx = make_context(pw, model)
+    for rows in ctx.rows.values():
+        if len(rows) < pw.n:
+            assert not np.isin(rows, i).any()
+    d = diagnose([gappy], model)
+    assert any("Fz 300 samples" in line and "bridged" in line for line in d.details["log"])
+    assert d.to_json()["inputs_bridged"] == {w.prefix: {"Fz": 300}}
+    assert np.all(np.isfinite(d.wheels[w.prefix].predictions["improved_Fy"]))
 
 
 def smooth_fixed(x: np.ndarray, w: int) -> np.ndarray:

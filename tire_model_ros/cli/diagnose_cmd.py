@@ -163,6 +163,9 @@ def run(args: argparse.Namespace) -> int:
         if a is not None and b is not None:
             unit = "N m" if ch == "Mz" else "N"
             print(f"  held-out {ch} RMSE: {a:.1f} -> {b:.1f} {unit}")
+    for prefix, gaps in diag.inputs_bridged.items():
+        counts = ", ".join(f"{k} {n}" for k, n in gaps.items())
+        print(f"  {prefix}: inputs not finite on samples ({counts}): bridged, not scored")
     for warning in heldout_warnings(diag.fit):
         print(f"  {warning}")
     if args.json:

@@ -24,6 +24,7 @@ from .folds import BLOCK_S, assign_folds, block_index
 
 Array = npt.NDArray[np.float64]
 Index = npt.NDArray[np.int64]
+Mask = npt.NDArray[np.bool_]
 
 CHANNELS = DIAGNOSED_CHANNELS  # the measured channels compared; Fx, Fy are selected on
 MIN_SAMPLES = 50
@@ -61,6 +62,10 @@ class Wheel:
     fold: npt.NDArray[np.int8]  # 0, 1 (selection folds) or 2 (final held-out) per sample
     scramble: Index  # sample order of a block-shuffled copy of a driver (controls)
     smoothing: dict[str, int] = field(default_factory=dict)  # input smoother windows [samples]
+    # samples where a recorded input was not finite (bridged, left out of fits and scores),
+    # and how many per input
+    bridged: Mask = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    gaps: dict[str, int] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -101,6 +106,22 @@ def _fill(x: Array) -> Array:
     if ok.all():
         return x
     return np.where(ok, x, np.median(x[ok]) if ok.any() else 0.0)
+
+
+def bridge(t: Array, x: Array) -> tuple[Array, Mask]:
+    """A recorded input with its non-finite samples bridged linearly in time (held at the
+    ends), and where they were.
+
+    A NaN in a message (a sensor's dropout flag, a failed conversion) is no value: filled with
+    zero, a load dropout would become a zero-load stretch and the smoother would spread the step
+    to zero into its good neighbours.
+    """
+    bad = ~np.isfinite(x)
+    if not bad.any():
+        return x, bad
+    if bad.all():
+        return np.zeros_like(x), bad
+    return np.where(bad, np.interp(t, t[~bad], x[~bad]), x), bad
 
 
 def _left_out_kernel(w: int) -> Array:
@@ -160,8 +181,10 @@ def shorten(
     model: TireModel,
     meas: dict[str, Array],
     optional: dict[str, Array | None],
+    bridged: Mask,
 ) -> dict[str, int]:
-    """Each input's window shortened where the file model's forces ask for it.
+    """Each input's window shortened where the file model's forces ask for it (compared on
+    the samples where no input was ``bridged``).
 
     The cross-validation of :func:`smooth` weighs an input's error alike everywhere and, by
     predicting each sample without its neighbours, favours long windows where the input moves
@@ -181,7 +204,7 @@ def shorten(
     forces = [ch for ch in ("Fx", "Fy") if ch in meas]
     if not forces:
         return windows
-    ok = np.all([np.isfinite(meas[ch]) for ch in forces], axis=0)
+    ok = np.all([np.isfinite(meas[ch]) for ch in forces], axis=0) & ~bridged
     rows = np.flatnonzero(ok)
     rows = rows[:: max(1, len(rows) // SHORTEN_ROWS)]
     if len(rows) == 0:
@@ -242,9 +265,13 @@ def prepare_wheel(
         "p": None if s.p is None else _fill(np.asarray(s.p, float)),
         "T": None if s.T is None else _fill(np.asarray(s.T, float)),
     }
-    rawf = {k: np.nan_to_num(np.asarray(raw[k], float)) for k in SMOOTHED}
+    rawf, gap = {}, {}
+    for k in SMOOTHED:
+        rawf[k], gap[k] = bridge(t, np.asarray(raw[k], float))
+    bridged = np.any(list(gap.values()), axis=0)
     if windows is None:
-        windows = shorten(rawf, {k: cv_window(rawf[k]) for k in SMOOTHED}, model, meas, inputs)
+        windows = {k: cv_window(rawf[k]) for k in SMOOTHED}
+        windows = shorten(rawf, windows, model, meas, inputs, bridged)
     for key in SMOOTHED:
         inputs[key] = savgol(rawf[key], windows[key])
     kappa, alpha = inputs["kappa"], inputs["alpha"]
@@ -277,6 +304,8 @@ def prepare_wheel(
         fold,
         scramble,
         windows,
+        bridged,
+        {k: int(g.sum()) for k, g in gap.items() if g.any()},
     )
 
 
@@ -314,8 +343,9 @@ def swept(w: Wheel, key: str, level: float) -> bool:
 
 
 def fold_rows(w: Wheel, folds: tuple[int, ...], stride: int) -> Index:
-    """Rows of ``folds`` where every measured channel is finite, every ``stride``-th."""
-    ok = np.ones(w.n, dtype=bool)
+    """Rows of ``folds`` where every measured channel is finite and no input was bridged,
+    every ``stride``-th."""
+    ok = ~w.bridged if len(w.bridged) else np.ones(w.n, dtype=bool)
     for v in w.meas.values():
         ok &= np.isfinite(v)
     return np.flatnonzero(np.isin(w.fold, folds) & ok)[::stride]

@@ -141,6 +141,11 @@ def finish(prefix: str, sel: Selection) -> WheelDiagnosis:
         "where the file model's forces ask): "
         + ", ".join(f"{k} {n} samples" for k, n in w.smoothing.items())
     )
+    if w.gaps:
+        log.append(
+            "inputs not finite, bridged linearly in time and left out of fitting and scoring: "
+            + ", ".join(f"{k} {n} samples" for k, n in w.gaps.items())
+        )
     models = trial.models
     # a tyre effect keeps the parameters it was fitted with to every wheel
     free = held(models, sel.final.shared)
@@ -380,6 +385,7 @@ def reference_context(wd: WheelDiagnosis, twin: WheelSeries) -> Context:
         block_id=w.block_id,
         fold=w.fold,
         scramble=w.scramble,
+        bridged=w.bridged,
     )
     ref = dataclasses.replace(ctx, wheel=r, cache={})
     return ref
@@ -408,7 +414,7 @@ def floor(
         for m, t, a, b in zip(measured, twins, on_recorded, on_true, strict=True):
             if ch not in m.wheel.meas or ch not in t.wheel.meas or f"improved_{ch}" not in a:
                 continue
-            held = m.wheel.fold == 2
+            held = (m.wheel.fold == 2) & ~m.wheel.bridged
             pairs = (
                 (t.wheel.meas[ch] - m.wheel.meas[ch]),
                 a[f"improved_{ch}"] - b[f"improved_{ch}"],

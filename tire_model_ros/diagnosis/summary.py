@@ -108,9 +108,16 @@ class Diagnosis:
             {"name": w, "explained_alone": share, "told_apart_by": TOLD_APART_BY.get(w, "")}
             for w, share in self.look_alikes.items()
         ]
+        out["inputs_bridged"] = self.inputs_bridged
         if len(self.wheels) > 1:
             out["wheels"] = {p: w.to_json() for p, w in self.wheels.items()}
         return out
+
+    @property
+    def inputs_bridged(self) -> dict[str, dict[str, int]]:
+        """Per wheel, per input, the samples that were not finite: bridged linearly in time,
+        left out of every fit and score (:func:`.prepare.bridge`)."""
+        return {p: dict(w.ctx.wheel.gaps) for p, w in self.wheels.items() if w.ctx.wheel.gaps}
 
     def node_effects(self, tir: str = "") -> Effects:
         """The node's effects file: each wheel's hidden states, and what is not carried."""
