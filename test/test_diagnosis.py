@@ -331,7 +331,7 @@ def test_a_carcass_brought_hot_to_the_rig_is_recovered_with_its_warm_start(model
     at the bound, 110 times the noise's cost)."""
     from tire_model_ros.diagnosis.fitting import fit
 
-    truth = dict(tau_fast_s=3.0, tau_slow_s=200.0, slow_share=1.0, T0_K=75.0, grip_per_dT=-0.15)
+    truth = dict(tau_fast_s=3.0, tau_slow_s=200.0, slow_gain=1.0, T0_K=75.0, grip_per_dT=-0.15)
     hidden, ctx, _ = _made_by_hidden_thermal(model, truth)
     rows = np.arange(len(ctx.wheel.t))
     f = fit([hidden], ctx, rows)
@@ -360,10 +360,10 @@ def test_a_tyre_cooling_unheated_by_the_power_is_a_change_in_time_not_a_temperat
         t = joint_add(base, ("HiddenThermal", hidden.label), {p: hidden})
         return _controls(t, base)
 
-    cooling = dict(slow_share=0.0, T0_K=60.0, tau_slow_s=300.0, stiffness_per_K=-0.004)
+    cooling = dict(slow_gain=0.0, T0_K=60.0, tau_slow_s=300.0, stiffness_per_K=-0.004)
     ok, note = controls(cooling)
     assert not ok and "a change in time, its cause not shown" in note, note
-    ok, note = controls({**cooling, "slow_share": 1.0, "grip_per_dT": -0.15})
+    ok, note = controls({**cooling, "slow_gain": 1.0, "grip_per_dT": -0.15})
     assert ok and "beats its controls" in note, note
 
 
@@ -400,7 +400,7 @@ def test_a_window_flat_beyond_its_optimum_is_followed_by_the_hidden_grip_table(m
     of times the noise worse); the effects file carries the table."""
     from tire_model_ros.diagnosis.fitting import fit
 
-    truth = dict(tau_fast_s=3.0, tau_slow_s=150.0, slow_share=2.0)
+    truth = dict(tau_fast_s=3.0, tau_slow_s=150.0, slow_gain=2.0)
     truth.update({f"mu_at_T_p{q:03d}": 1.08 for q in (25, 50, 75, 100)})
     hidden, ctx, _ = _made_by_hidden_thermal(model, truth)
     rows = np.arange(len(ctx.wheel.t))

@@ -199,7 +199,8 @@ class HiddenThermal(_TTModel):
         nodes = [
             Param("tau_fast_s", 3.0, *TAU_FAST_S, 3.0),
             Param("tau_slow_s", 150.0, *TAU_SLOW_S, 80.0),
-            Param("slow_share", 1.0, 0.0, 20.0, 0.5),
+            # the carcass node's steady rise per watt, a multiple of the tread node's
+            Param("slow_gain", 1.0, 0.0, 20.0, 0.5),
             Param("T0_K", 0.0, 0.0, 90.0, 10.0),  # a pre-warmed start (0: at ambient)
         ]
         cooling = [nodes[1], nodes[3]]
@@ -209,7 +210,7 @@ class HiddenThermal(_TTModel):
         starts = [
             {"tau_fast_s": 1.0},
             {"tau_fast_s": 10.0},
-            {"tau_slow_s": 60.0, "slow_share": 2.0},
+            {"tau_slow_s": 60.0, "slow_gain": 2.0},
             {"T0_K": 30.0},  # a tyre brought warm: it cools before it heats
         ]
         guide = [Param(k, 0.0, -TT_SPAN, TT_SPAN, 0.1, stage=1) for k in GUIDE]
@@ -249,7 +250,7 @@ class HiddenThermal(_TTModel):
             return np.zeros_like(ramp), ramp + cooling
         P = {"scrambled": w.P[w.scramble], "reversed": w.P[::-1]}.get(self.mode, w.P)
         fast = first_order(k * P, w.t, v["tau_fast_s"])
-        slow = first_order(k * v["slow_share"] * P, w.t, v["tau_slow_s"], v["T0_K"])
+        slow = first_order(k * v["slow_gain"] * P, w.t, v["tau_slow_s"], v["T0_K"])
         return fast, slow
 
     def knots(self, x: Array, ctx: Context) -> Array:
@@ -319,7 +320,7 @@ class HiddenThermal(_TTModel):
         return {
             "T_amb_C": ctx.T_amb,
             "thermal": Node(v["tau_fast_s"], ctx.k_thermal),
-            "thermal_slow": Node(v["tau_slow_s"], ctx.k_thermal * v["slow_share"]),
+            "thermal_slow": Node(v["tau_slow_s"], ctx.k_thermal * v["slow_gain"]),
             "thermal_slow_start_K": v["T0_K"],
             "stiffness_per_K": v["stiffness_per_K"],
             "grip_table": self.grip_table(x, ctx),
