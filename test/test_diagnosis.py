@@ -840,8 +840,9 @@ def test_a_remembered_hidden_state_is_never_served_stale(model):
 def test_a_recorded_temperature_reaches_the_grip_as_the_node_feeds_it(model):
     """A recorded (surface) temperature reaches the grip partly at once and partly through
     the lag of the tread's bulk, and the grip follows it through a table (a window of any
-    shape, 1 at the channel's median): what the diagnosis fits on is, sample for sample,
-    what the node computes from the effects file it carries. The temperature differs from
+    shape, 1 at the channel's median); the stiffness falls with the lagged channel (the
+    carcass): what the diagnosis fits on is, sample for sample, what the node computes from
+    the effects file it carries. The temperature differs from
     both the channel and its lag alone; the table holds its end values beyond its knots."""
     from tire_model_ros.diagnosis.dynamics import first_order
     from tire_model_ros.diagnosis.effects.thermal import RecordedThermal
@@ -853,8 +854,13 @@ def test_a_recorded_temperature_reaches_the_grip_as_the_node_feeds_it(model):
     (m,) = RecordedThermal.propose(ctx)
     x = m.x0.copy()
     x[m.pnames.index("tau_T_s")], x[m.pnames.index("T_surface_weight")] = 30.0, 0.4
+    for name, v in (("tau_carcass_s", 90.0), ("T0_K", 8.0), ("stiffness_per_K", -0.01)):
+        x[m.pnames.index(name)] = v
     x[-4:] = [1.1, 1.05, 0.9, 0.7]  # a window: grip peaks below the median
     fitted, scale = m.temperature(x, ctx), m.mu_scale(x, ctx, ctx.rows["all"])
+    slips: dict[str, np.ndarray | None] = {"kappa": np.full(ctx.wheel.n, 0.1),
+                                           "alpha": np.full(ctx.wheel.n, 0.05)}  # fmt: skip
+    m.per_sample(x, ctx, slips, ctx.rows["all"])
     carried = m.carry(x, ctx)
     assert carried is not None
     knots, mu = carried["grip_table"]
@@ -863,11 +869,14 @@ def test_a_recorded_temperature_reaches_the_grip_as_the_node_feeds_it(model):
     w, T = ctx.wheel, ctx.wheel.inputs["T"]
     assert T is not None
     node = np.array([
-        state.inputs(float(ti), 0.1, 0.05, 10.0, float(Ti), None, ctx.p_nom, ctx.T_amb)[2:5:2]
+        state.inputs(float(ti), 0.1, 0.05, 10.0, float(Ti), None, ctx.p_nom, ctx.T_amb)
         for ti, Ti in zip(w.t, T, strict=True)
     ])  # fmt: skip
-    np.testing.assert_allclose(node[:, 0], fitted, rtol=1e-10)
-    np.testing.assert_allclose(node[:, 1], scale, rtol=1e-10)
+    np.testing.assert_allclose(node[:, 2], fitted, rtol=1e-10)
+    np.testing.assert_allclose(node[:, 4], scale, rtol=1e-10)
+    # the carcass' stiffness, then the grip's similarity: the slips the model sees
+    np.testing.assert_allclose(node[:, 0] * node[:, 4], slips["kappa"], rtol=1e-10)
+    assert slips["kappa"] is not None and np.ptp(slips["kappa"]) > 0.002  # 2 % of it
     gap = float(np.max(np.abs(fitted - T)))
     assert gap > 0.5 and np.max(np.abs(fitted - first_order(T, w.t, 30.0, T[0]))) > 0.5 * gap
     assert np.ptp(scale) > 0.1 and np.interp([-50.0, 500.0], knots, mu).tolist() == [1.1, 0.7]

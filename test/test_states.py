@@ -13,6 +13,7 @@ from conftest import DEFAULT_TIR
 from tire_model_ros.diagnosis.dynamics import first_order, thermal_state_K
 from tire_model_ros.model import TireModel
 from tire_model_ros.model.states import (
+    Carcass,
     Effects,
     EffectsError,
     EffectState,
@@ -37,6 +38,7 @@ FULL = WheelEffects(
     alpha_shift_rad=0.002,
     T_lag_s=30.0,
     T_surface_weight=0.5,
+    T_carcass=Carcass(200.0, 4.0, -0.002, 45.0),
     grip_table=((20.0, 40.0, 60.0), (1.05, 1.0, 0.9)),
     speed_table=((-2.0, 0.0, 1.0), (0.8, 1.0, 0.9)),
     sidewall=Sidewall(1.5, 0.1, 2.0, 0.4, 0.03, 0.05),
@@ -268,7 +270,7 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
     fixed = sidewall_factor(rho, alpha, sw._replace(alpha_c_per_rho=0.0))
     assert np.all(fixed > 1.0 - 1e-6)  # alpha_c fixed: 0.14 rad never reaches it
     doc = json.loads(Effects({"/w": WheelEffects(sidewall=sw)}).to_json())
-    assert doc["version"] == 7 and doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"] == 0.1
+    assert doc["version"] == 8 and doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"] == 0.1
     del doc["wheels"]["/w"]["sidewall"]["alpha_c_per_rho"]
     doc["version"] = 3
     assert Effects.from_dict(doc).wheels["/w"].sidewall == sw._replace(alpha_c_per_rho=0.0)
@@ -278,7 +280,9 @@ def test_sidewall_meets_the_road_at_a_smaller_slip_angle_the_more_the_tyre_is_de
     ("mangle", "words"),
     [
         (lambda d: d.update(format="x"), ["format"]),
-        (lambda d: d.update(version=8), ["version"]),
+        (lambda d: d.update(version=9), ["version"]),
+        (lambda d: d["wheels"]["/w"]["T_carcass"].pop("start_K"), ["T_carcass.start_K"]),
+        (lambda d: d["wheels"]["/w"]["T_carcass"].update(tau_s=-1), ["T_carcass.tau_s"]),
         (lambda d: d.update(wheels={}), ["wheels"]),
         (lambda d: d["wheels"]["/w"]["thermal"].update(tau_s=-1.0), ["wheels./w.thermal.tau_s"]),
         (lambda d: d["wheels"]["/w"]["thermal_slow"].pop("start_K"), ["thermal_slow.start_K"]),
@@ -347,10 +351,38 @@ def test_a_measured_temperature_is_lagged_as_the_diagnosis_lags_it():
     assert np.std(got) < 0.5 * np.std(T)  # lagged, not passed through
 
 
+def test_the_stiffness_falls_with_a_measured_temperatures_carcass_and_round_trips():
+    """T_carcass: the slips the model sees are scaled by 1 + c (carcass - reference), the
+    carcass the measured temperature through its own lag from a start above the first sample
+    (a tyre brought warm), as the diagnosis integrates it; the grip's temperature is apart
+    (here the surface itself); the file keeps it (version 8); a version 7 file reads without
+    it."""
+    rng = np.random.default_rng(4)
+    t = np.cumsum(rng.uniform(0.005, 0.03, 300))
+    T = 40.0 + np.cumsum(rng.normal(0.0, 0.5, 300))
+    fx = WheelEffects(T_carcass=Carcass(20.0, 6.0, -0.004, 40.0))
+    st = EffectState(fx)
+    got = np.array([
+        st.inputs(float(ti), 0.05, 0.1, 10.0, float(Ti), None, 2.6e5, 25.0)[:3]
+        for ti, Ti in zip(t, T, strict=True)
+    ])  # fmt: skip
+    k = 1.0 - 0.004 * (first_order(T, t, 20.0, float(T[0]) + 6.0) - 40.0)
+    np.testing.assert_allclose(got[:, 0], 0.05 * k, rtol=1e-12)
+    np.testing.assert_allclose(np.tan(got[:, 1]), np.tan(0.1) * k, rtol=1e-12)
+    np.testing.assert_allclose(got[:, 2], T, rtol=1e-12)  # the grip feels the surface
+    assert np.ptp(k) > 0.005
+    doc = json.loads(Effects({"/w": fx}).to_json())
+    assert doc["version"] == 8 and doc["wheels"]["/w"]["T_carcass"]["start_K"] == 6.0
+    assert Effects.from_dict(doc).wheels["/w"] == fx
+    del doc["wheels"]["/w"]["T_carcass"]
+    doc["version"] = 7
+    assert Effects.from_dict(doc).wheels["/w"] == WheelEffects()
+
+
 def test_a_measured_surface_temperature_is_blended_with_its_lag_and_the_weight_round_trips():
     """T_surface_weight w: the grip feels w of the measured (surface) temperature at once and
     the rest through the lag, and its friction follows that temperature through the grip
-    table; the file keeps both (version 7) and refuses a w outside [0, 1]; a version 6 file
+    table; the file keeps both (since version 7) and refuses a w outside [0, 1]; a version 6 file
     (the lag alone) reads with w = 0 and no table."""
     rng = np.random.default_rng(3)
     t = np.cumsum(rng.uniform(0.005, 0.03, 300))
@@ -367,7 +399,7 @@ def test_a_measured_surface_temperature_is_blended_with_its_lag_and_the_weight_r
     np.testing.assert_allclose(got[:, 1], np.interp(want, *table), rtol=1e-12)
     assert np.ptp(got[:, 1]) > 0.1
     doc = json.loads(Effects({"/w": fx}).to_json())
-    assert doc["version"] == 7 and doc["wheels"]["/w"]["T_surface_weight"] == 0.4
+    assert doc["version"] == 8 and doc["wheels"]["/w"]["T_surface_weight"] == 0.4
     assert doc["wheels"]["/w"]["grip_table"] == {"T_C": [38.0, 40.0, 42.0], "mu": [1.1, 1.0, 0.8]}
     assert Effects.from_dict(doc).wheels["/w"] == fx
     doc["wheels"]["/w"]["T_surface_weight"] = 1.5

@@ -1,11 +1,12 @@
 """Hidden states of an improved model, run forward one sample at a time (no ROS).
 
 ``tire-model diagnose`` fits effects that a .tir file cannot hold: hidden tread and carcass
-thermal nodes, a hidden gas node, force offsets and a ply-steer slip-angle shift, friction
-against sliding speed, a sidewall-contact force drop. It writes them beside the improved .tir
-as an *effects file* (JSON, one entry per wheel); the node runs them per wheel with
-:class:`EffectState`, so a simulation with the improved model heats the tyre as the diagnosis
-found it did.
+thermal nodes (or a measured temperature's lags: the tread and carcass beneath the sensor), a
+grip table against the temperature, a hidden gas node, force offsets and a ply-steer
+slip-angle shift, friction against sliding speed, a sidewall-contact force drop. It writes them
+beside the improved .tir as an *effects file* (JSON, one entry per wheel); the node runs them
+per wheel with :class:`EffectState`, so a simulation with the improved model heats the tyre as
+the diagnosis found it did.
 
 The forms are the diagnosis' (:mod:`tire_model_ros.diagnosis.effects`): each node is
 ``y' = (k P_fric - y) / tau``, stepped exactly for the power held over the step; friction
@@ -45,16 +46,19 @@ if TYPE_CHECKING:
     from tire_model_ros.model.mf import TireModel, Wrench
 
 FORMAT = "tire_model_ros.effects"
-VERSION = 7  # 7: a measured temperature blended with its lag, a grip table in the temperature
+VERSION = 8  # 8: a measured temperature's carcass, whose stiffness falls with it (a reader of 7
+# would drop T_carcass); 7: a measured temperature blended with its lag, a grip table in the
+# temperature
 # (a reader of 6 would drop T_surface_weight and grip_table); 6: a speed table relative to a
 # reference speed (a reader of 5 would drop reference_V_mps and scale the file's curve at every
 # speed); 5: sidewall deflection with the tyre file's vertical stiffness law (a reader of 4
 # would drop deflection_pressure_weight); 4: sidewall contact at a slip angle that falls
 # with the deflection, a gas node's start
-READS = (1, 2, 3, 4, 5, 6, 7)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth
+READS = (1, 2, 3, 4, 5, 6, 7, 8)  # 1 (no slow node, shift or sidewall), 2 (sidewall without depth
 # and gate_width: the linear loss behind a 5 % gate), 3 (its slip angle fixed, the gas starting
 # at ambient), 4 (the deflection's pressure weight the air's share), 5 (speed tables
-# absolute) and 6 (a measured temperature's lag alone) read as subsets
+# absolute), 6 (a measured temperature's lag alone) and 7 (its stiffness TT*1 in the .tir) read
+# as subsets
 T_ABS0_C = 273.15  # 0 degC in K
 MIN_MU_SCALE = 0.05  # as the diagnosis' similarity evaluation
 NODES = ("thermal", "thermal_slow", "gas")
@@ -68,6 +72,16 @@ class Node:
 
     tau_s: float
     gain_per_W: float
+
+
+class Carcass(NamedTuple):
+    """The carcass beneath a measured (surface) temperature: the channel through a first-order
+    lag from a start, the slip stiffness falling with it (PHYSICS.md: with the carcass)."""
+
+    tau_s: float  # the lag [s] (0: the channel itself)
+    start_K: float  # the carcass at the first sample, above it (a tyre brought warm: > 0)
+    stiffness_per_K: float  # slip stiffness scales by 1 + this * (carcass - reference_C)
+    reference_C: float  # where the stiffness is the file's [degC]
 
 
 class Sidewall(NamedTuple):
@@ -101,6 +115,7 @@ class WheelEffects:
     T_lag_s: float = 0.0  # a measured temperature is lagged by this first-order node [s]
     T_surface_weight: float = 0.0  # the grip feels this share of the measured (surface)
     # temperature at once and the rest through the lag (the tread's bulk beneath the sensor)
+    T_carcass: Carcass | None = None  # a measured temperature's carcass, its stiffness loss
     grip_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (T degC, mu): the
     # friction scale against the temperature the grip feels, linear between, held beyond
     speed_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (ln Vs, mu)
@@ -128,6 +143,8 @@ class WheelEffects:
             d["T_lag_s"] = self.T_lag_s
             if self.T_surface_weight:
                 d["T_surface_weight"] = self.T_surface_weight
+        if self.T_carcass is not None:
+            d["T_carcass"] = self.T_carcass._asdict()
         if self.grip_table is not None:
             d["grip_table"] = {"T_C": list(self.grip_table[0]), "mu": list(self.grip_table[1])}
         if self.speed_table is not None:
@@ -256,6 +273,17 @@ def _reference(t: Any, w: str) -> float:
     return _number(t, "reference_V_mps", w, 0.0)
 
 
+def _carcass(d: object, w: str) -> Carcass:
+    if not isinstance(d, Mapping):
+        raise EffectsError(f"{w}: expected an object with {', '.join(Carcass._fields)}")
+    return Carcass(
+        _number(d, "tau_s", w, 0.0),
+        _number(d, "start_K", w),
+        _number(d, "stiffness_per_K", w),
+        _number(d, "reference_C", w, -T_ABS0_C),
+    )
+
+
 def _sidewall(d: object, w: str) -> Sidewall:
     if not isinstance(d, Mapping):
         raise EffectsError(
@@ -314,6 +342,7 @@ def _wheel(d: object, where: str) -> WheelEffects:
         alpha_shift_rad=_number(d, "alpha_shift_rad", where) if "alpha_shift_rad" in d else 0.0,
         T_lag_s=_number(d, "T_lag_s", where, 0.0) if "T_lag_s" in d else 0.0,
         T_surface_weight=_share(d, "T_surface_weight", where),
+        T_carcass=_carcass(d["T_carcass"], f"{where}.T_carcass") if "T_carcass" in d else None,
         grip_table=_table(d["grip_table"], f"{where}.grip_table", "T_C")
         if "grip_table" in d
         else None,
@@ -407,7 +436,8 @@ class EffectState:
             "thermal_slow": self.fx.thermal_slow_start_K,
             "gas": self.fx.gas_start_K,
         }
-        self.T_seen: float | None = None  # the lagged measured temperature (T_lag_s)
+        self.T_seen = 0.0  # the lagged measured temperature (T_lag_s)
+        self.carcass_C = 0.0  # the carcass beneath it (T_carcass)
         self.T_last: float | None = None  # the measured temperature held over the step
         self._rho = 1.0  # relative deflection of the current sample
 
@@ -425,18 +455,22 @@ class EffectState:
             a = math.exp(-dt / node.tau_s)
             self.y[name] = _bounded(a * self.y[name] + (1.0 - a) * u)
 
-    def _lagged(self, T_C: float, dt: float, drive: bool = True) -> float:
-        """The measured temperature through the first-order lag T_lag_s (the value held over
-        the step, as the diagnosis integrates it); ``drive`` False: ``T_C`` is not held over
-        the next step (the one held from before is)."""
-        if self.T_seen is None or self.T_last is None:
-            self.T_seen = T_C
+    def _measured(self, T_C: float, dt: float, drive: bool) -> tuple[float, float]:
+        """The measured temperature through the grip's lag T_lag_s and the carcass' lag, as
+        the diagnosis integrates them (the value held over the step; a lag of 0: the sample
+        itself); ``drive`` False: ``T_C`` is not held over the next step (the one held from
+        before is)."""
+        fx, c = self.fx, self.fx.T_carcass
+        if self.T_last is None:
+            self.T_seen, self.carcass_C = T_C, T_C + (c.start_K if c is not None else 0.0)
         else:
-            a = math.exp(-dt / self.fx.T_lag_s)
-            self.T_seen = a * self.T_seen + (1.0 - a) * self.T_last
+            self.T_seen = _held_lag(self.T_seen, self.T_last, dt, fx.T_lag_s)
+            if c is not None:
+                self.carcass_C = _held_lag(self.carcass_C, self.T_last, dt, c.tau_s)
         if drive or self.T_last is None:
             self.T_last = T_C
-        return self.T_seen
+        grip = self.T_seen if fx.T_lag_s > 0.0 else T_C
+        return grip, self.carcass_C if c is not None and c.tau_s > 0.0 else T_C
 
     def idle(self, t_s: float) -> None:
         """A sample with the wheel off the ground: the nodes step to ``t_s`` and cool."""
@@ -472,9 +506,14 @@ class EffectState:
         self._step(t_s)
         fx = self.fx
         T = T_C
-        if T is not None and fx.T_lag_s > 0.0:
-            share = fx.T_surface_weight
-            T = share * T + (1.0 - share) * self._lagged(T, dt, drive)
+        stiff = fx.stiffness_per_K * self.y["thermal_slow"]  # the carcass' stiffness change
+        if T is not None and (fx.T_lag_s > 0.0 or fx.T_carcass is not None):
+            lagged, carcass = self._measured(T, dt, drive)
+            if fx.T_carcass is not None:
+                stiff += fx.T_carcass.stiffness_per_K * (carcass - fx.T_carcass.reference_C)
+            if fx.T_lag_s > 0.0:
+                share = fx.T_surface_weight
+                T = share * T + (1.0 - share) * lagged
         if T is None:
             T = self.temperature_C if fx.thermal is not None else T_nom
         p = p_Pa
@@ -486,8 +525,8 @@ class EffectState:
             w = fx.sidewall.pressure_weight
             self._rho = float(relative_deflection(Fz_over_FNOMIN, 1.0, p, p_nom, w))
         alpha = alpha + fx.alpha_shift_rad
-        if fx.stiffness_per_K:  # the carcass' stiffness loss: slips scaled before similarity
-            k = max(1.0 + fx.stiffness_per_K * self.y["thermal_slow"], 0.3)
+        if stiff:  # the carcass' stiffness loss: slips scaled before similarity
+            k = max(1.0 + stiff, 0.3)
             kappa, alpha = kappa * k, math.atan(math.tan(alpha) * k)
         s = 1.0
         if self._grip is not None:  # grip against the temperature it feels
@@ -561,6 +600,14 @@ class EffectState:
         if drive and math.isfinite(P):  # a bad sample must not poison the states
             self.P_last = min(P, MAX_POWER_W)
         return Fx, Fy, Fz_o, Mx, My, Mz
+
+
+def _held_lag(y: float, u_held: float, dt: float, tau_s: float) -> float:
+    """One exact step of y' = (u - y) / tau for u held over ``dt`` (tau <= 0: y = u)."""
+    if tau_s <= 0.0:
+        return u_held
+    a = math.exp(-dt / tau_s)
+    return a * y + (1.0 - a) * u_held
 
 
 def _bounded(y_K: float) -> float:

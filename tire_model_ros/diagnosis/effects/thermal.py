@@ -1,13 +1,13 @@
 """Tyre temperature: a recorded channel refitted, or concealed heating inferred.
 
 The grip of rubber has a temperature window (PHYSICS.md): it rises towards an optimum and
-falls beyond it; stiffness falls with temperature. The .tir temperature extension carries both
-(INTERFACE.md): grip through TT*3, TT*4 (linear and quadratic in dT: a window is a pair of
-opposite sign), stiffness through TT*1 (falling; TT*2 is left as the file has it). A window
+falls beyond it; stiffness falls with the carcass temperature. The .tir temperature extension
+(INTERFACE.md: TT*1-4, quadratics in dT about NOMTEMP, on one temperature input) carries a
+recorded temperature's stiffness TT*1; what it cannot carry the effects file does: a window
 may be skewed and flat beyond its optimum, which a quadratic cannot follow, and a quadratic
-fitted on some temperatures keeps rising beyond them: the grip is a table against the
-temperature (similarity method; the effects file carries it), the stiffness TT*1 of a
-recorded temperature, the carcass' own factor of a concealed one.
+fitted on some temperatures keeps rising beyond them, so the grip is a table against the
+temperature (similarity method); and the stiffness falls with a carcass that lags the tread,
+a factor per K of the carcass (a hidden node, or the recorded channel through its own lag).
 Concealed, the tread temperature is the sum of two lumped nodes heated by the frictional
 power: the tread surface (seconds) on the carcass (minutes), each cooling back when the power
 stops, plus what is left of a pre-warmed start.
@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from tire_model_ros.model.states import Node
+from tire_model_ros.model.states import Carcass, Node
 
 from ..dynamics import first_order, stiffened
 from ..prepare import THERMAL_RISE_REF_K, Context
@@ -36,6 +36,7 @@ TT_SPAN = 2.0  # bound of a TT coefficient change (dT is about 1 over the conven
 # +10 degC at most, stiffness larger cold): beyond, a fitted quadratic is extrapolating.
 FACTOR_RANGE = (0.5, 1.5)
 PENALTY_WEIGHT = 300.0  # noise units per unit of factor outside its range
+CARCASS_START_K = (-30.0, 60.0)  # a recorded channel's carcass at the start [K from it]
 RECORDED_T_MIN_STD_K = 0.5  # a recorded temperature that moves less tells nothing
 # A recorded temperature spans enough of the window to show its shape: the grip is a table at
 # these percentiles of the channel (the median's 1: the baseline's friction scaling is there)
@@ -59,6 +60,13 @@ def _stiffness_params(ctx: Context) -> list[Param]:
     in a few sweeps borrows the other's): falling with temperature (PHYSICS.md:
     monotonically, so linear, TT*2 left as the file has it)."""
     return [Param("TT1", 0.0, -TT_SPAN, 0.0, 0.1)] if _axes(ctx) else []
+
+
+def _carcass_stiffness() -> Param:
+    """The slip stiffness' loss per K of the carcass (PHYSICS.md: stiffness falls with the
+    carcass temperature, monotonically): one for both directions (the rubber's; a direction
+    swept in a few sweeps borrows the other's)."""
+    return Param("stiffness_per_K", 0.0, -STIFFNESS_PER_K, 0.0, 0.002)
 
 
 def _dT(T: Array, ref_C: float) -> Array:
@@ -206,7 +214,7 @@ class HiddenThermal(_TTModel):
         cooling = [nodes[1], nodes[3]]
         ramp = [Param("ramp_K", THERMAL_RISE_REF_K, 0.0, 90.0, 10.0)]
         head = {"memoryless": [], "trend": [*cooling, *ramp]}.get(mode, nodes)
-        stiff = [Param("stiffness_per_K", 0.0, -STIFFNESS_PER_K, 0.0, 0.002)]
+        stiff = [_carcass_stiffness()]
         starts = [
             {"tau_fast_s": 1.0},
             {"tau_fast_s": 10.0},
@@ -329,18 +337,25 @@ class HiddenThermal(_TTModel):
 
 class RecordedThermal(_TTModel):
     """A recorded tread temperature: the grip and stiffness laws the file lacks (or has
-    wrong) refitted on it. A sensor reads the surface; the grip feels the tread beneath it
-    too, which lags (PHYSICS.md: the surface in seconds on the bulk in minutes): the
-    temperature the model sees is ``T_surface_weight`` of the channel plus the rest of it
-    through a first-order lag ``tau_T_s`` (weight 1: the channel itself).
+    wrong) fitted on it. A sensor reads the surface; beneath it the tread's bulk and the
+    carcass lag (PHYSICS.md: the surface in seconds on the bulk in minutes). The grip feels
+    ``T_surface_weight`` of the channel and the rest of it through a first-order lag
+    ``tau_T_s`` (the tread beneath the sensor).
 
     Grip against it is a window of any shape (PHYSICS.md: an optimum, often skewed, flat
     beyond): a friction table at percentiles of the channel (similarity method, as the
     speed law), which the quadratic TT*3, TT*4 cannot follow over a session that crosses the
     optimum and saturates (car heat_recorded s29: the rest was named wear). The slip
-    stiffness falls through TT*1. ``mode`` "scrambled" (the channel block-shuffled) and
-    "trend" (a ramp in time of the same range) are its controls: the recorded temperature
-    must explain more than a drift that happens to go with it."""
+    stiffness falls through TT*1 on the temperature the grip feels, and with the carcass
+    (PHYSICS.md: stiffness falls with the carcass temperature), as the concealed model's: the
+    channel through its own lag ``tau_carcass_s`` from a start ``T0_K`` above its first
+    sample (a tyre brought warm). Through TT*1 alone the stiffness followed the surface, and
+    a tyre below its grip optimum, whose grip rises as the surface warms while its stiffness
+    falls with the slower bulk, was left far off its true forces (brush heat_recorded s45:
+    held-out 76 -> 40.5 N against a 33.3 N floor; 34.2 N with the carcass). ``mode``
+    "scrambled" (the channel block-shuffled) and "trend" (a ramp in time of the same range)
+    are its controls: the recorded temperature must explain more than a drift that happens
+    to go with it."""
 
     stable_in_time = False  # each half sees its own range of temperature
 
@@ -350,7 +365,7 @@ class RecordedThermal(_TTModel):
     def __init__(self, ctx: Context, mode: str = "recorded"):
         self.mode = mode
         self.label = {
-            "recorded": "recorded temperature, TTX/TTY refitted",
+            "recorded": "recorded temperature: grip table, TTX/TTY, carcass stiffness",
             "scrambled": "control: the recorded temperature time-scrambled",
             "trend": "control: a temperature ramp in time",
         }[mode]
@@ -358,17 +373,22 @@ class RecordedThermal(_TTModel):
         assert T is not None
         # A file without temperature terms leaves their reference free: the session's median
         # recorded temperature, so that dT is centred on the data (a quadratic about a
-        # NOMTEMP far below every sample is ill-conditioned and extrapolates wildly).
+        # NOMTEMP far below every sample is ill-conditioned and extrapolates wildly). The
+        # carcass' stiffness is the baseline's where the lagged channel is at that median.
         no_terms = all(ctx.base.get(k, 0.0) == 0.0 for k in TT_ALL)
-        self.ref = round(float(np.median(T)), 1) if no_terms else ctx.T_amb
+        self.T_ref = round(float(np.median(T)), 1)
+        self.ref = self.T_ref if no_terms else ctx.T_amb
         lag = [
-            Param("tau_T_s", 0.0, 0.0, 600.0, 5.0),  # the tread's bulk lags the sensor's surface
+            Param("tau_T_s", 0.0, 0.0, 600.0, 5.0),  # the tread's bulk lags the surface
             Param("T_surface_weight", 1.0, 0.0, 1.0, 0.2),  # what the grip feels of each
+            Param("tau_carcass_s", 120.0, *TAU_SLOW_S, 60.0),  # the carcass lags further
+            # the carcass at the start above the first sample (a tyre brought warm: > 0)
+            Param("T0_K", 0.0, *CARCASS_START_K, 10.0),
         ]
         self._knots = np.round(_rising(np.percentile(T, GRIP_KNOTS_PCT)), 2)
         grip = self.grip_params([f"mu_at_{k:.2f}_C" for k in self._knots])  # >= 0.1 K apart
         starts = [{"tau_T_s": 120.0, "T_surface_weight": 0.5}]
-        super().__init__([*lag, *_stiffness_params(ctx), *grip], starts)
+        super().__init__([*lag, _carcass_stiffness(), *_stiffness_params(ctx), *grip], starts)
 
     def reference_C(self, ctx: Context) -> float:
         return self.ref
@@ -393,21 +413,43 @@ class RecordedThermal(_TTModel):
     def controls(self, ctx: Context) -> list[EffectModel]:
         return [RecordedThermal(ctx, m) for m in ("scrambled", "trend")]
 
-    def temperature(self, x: Array, ctx: Context) -> Array:
+    def channel(self, ctx: Context) -> Array:
+        """The recorded temperature [degC] (a control's: scrambled, or a ramp)."""
         T = ctx.wheel.inputs["T"]
         assert T is not None
         if self.mode == "scrambled":
-            T = T[ctx.wheel.scramble]
-        elif self.mode == "trend":
+            return T[ctx.wheel.scramble]
+        if self.mode == "trend":
             lo, hi = np.percentile(T, [5, 95])
-            T = lo + (hi - lo) * ctx.wheel.t / ctx.t_end
-        w = float(x[1])
+            return np.asarray(lo + (hi - lo) * ctx.wheel.t / ctx.t_end, dtype=np.float64)
+        return T
+
+    def carcass(self, x: Array, ctx: Context) -> Array:
+        """The channel through the lag ``tau_carcass_s`` from its start [degC]."""
+
+        def make() -> Array:
+            T = self.channel(ctx)
+            return first_order(T, ctx.wheel.t, float(x[2]), float(T[0] + x[3]))
+
+        key = (float(x[2]), float(x[3]))
+        return self.remembered("carcass", ctx, key, make)  # type: ignore[no-any-return]
+
+    def temperature(self, x: Array, ctx: Context) -> Array:
+        """The temperature the grip feels [degC]."""
+        T, w = self.channel(ctx), float(x[1])
         return w * T + (1.0 - w) * first_order(T, ctx.wheel.t, float(x[0]), float(T[0]))
+
+    def per_sample(self, x: Array, ctx: Context, inp: dict[str, Array | None], rows: Index) -> None:
+        kappa, alpha = inp["kappa"], inp["alpha"]
+        assert kappa is not None and alpha is not None
+        k = np.maximum(1.0 + float(x[4]) * (self.carcass(x, ctx)[rows] - self.T_ref), 0.3)
+        inp["kappa"], inp["alpha"] = stiffened(kappa, alpha, k)
 
     def carry(self, x: Array, ctx: Context) -> dict[str, Any] | None:
         return {
             "T_lag_s": float(x[0]),
             "T_surface_weight": float(x[1]),
+            "T_carcass": Carcass(float(x[2]), float(x[3]), float(x[4]), self.T_ref),
             "grip_table": self.grip_table(x, ctx),
         }
 
