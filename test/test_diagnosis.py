@@ -1674,6 +1674,28 @@ def test_a_nan_stretch_in_an_input_is_bridged_left_out_and_counted(model):
     assert np.all(np.isfinite(d.wheels[w.prefix].predictions["improved_Fy"]))
 
 
+def test_a_nan_stretch_in_a_recorded_temperature_is_bridged_not_a_step_to_its_median(model):
+    """A temperature channel that sends NaN for 3 s while the tyre heats: bridged between its
+    neighbours (its median would be a step down and back, which a lag of it, the carcass,
+    carries on), left out of the fits and counted."""
+    from tire_model_ros.diagnosis.prepare import make_context, prepare_wheel
+
+    (w,), _ = _session(model, {"heating": True})
+    assert w.T is not None
+    i = np.arange(300) + int(0.05 * len(w.t))  # early: the tyre still cool
+    T = np.array(w.T, dtype=float)
+    T[i] = np.nan
+    pw = prepare_wheel(dataclasses.replace(w, T=T), model, np.random.default_rng(0))
+    assert pw.gaps == {"T": 300}
+    got = pw.inputs["T"]
+    assert got is not None and np.isfinite(got).all()
+    lo, hi = sorted((w.T[i[0] - 1], w.T[i[-1] + 1]))
+    assert lo - 1.0 <= got[i].min() and got[i].max() <= hi + 1.0
+    assert abs(float(np.median(w.T)) - lo) > 2.0  # the median would have been a step
+    ctx = make_context(pw, model)
+    assert not np.isin(ctx.rows["ab"], i).any()
+
+
 def smooth_fixed(x: np.ndarray, w: int) -> np.ndarray:
     from scipy.signal import savgol_filter
 

@@ -100,21 +100,14 @@ class Context:
     cache: dict[str, Any] = field(default_factory=dict)  # per-recording precomputations
 
 
-def _fill(x: Array) -> Array:
-    """Missing samples of an optional channel take the channel's median (never NaN)."""
-    ok = np.isfinite(x)
-    if ok.all():
-        return x
-    return np.where(ok, x, np.median(x[ok]) if ok.any() else 0.0)
-
-
 def bridge(t: Array, x: Array) -> tuple[Array, Mask]:
     """A recorded input with its non-finite samples bridged linearly in time (held at the
     ends), and where they were.
 
     A NaN in a message (a sensor's dropout flag, a failed conversion) is no value: filled with
     zero, a load dropout would become a zero-load stretch and the smoother would spread the step
-    to zero into its good neighbours.
+    to zero into its good neighbours; filled with the channel's median, a temperature would
+    step to it and back, and a lag of it (a carcass) would carry the steps on.
     """
     bad = ~np.isfinite(x)
     if not bad.any():
@@ -251,7 +244,7 @@ def prepare_wheel(
     if n < MIN_SAMPLES:
         raise ValueError(f"{s.prefix}: only {n} samples, too few to diagnose")
     P = model.params
-    V = _fill(np.asarray(s.Vx, float)) if s.Vx is not None else np.full(n, float(P["LONGVL"]))
+    V = np.asarray(s.Vx, float) if s.Vx is not None else np.full(n, float(P["LONGVL"]))
     meas = {}
     for ch in CHANNELS:
         v = getattr(s, ch)
@@ -261,13 +254,13 @@ def prepare_wheel(
         raise ValueError(f"{s.prefix}: no measured Fx, Fy or Mz")
     t = np.asarray(s.t, float) - float(s.t[0])
     raw = {"kappa": s.kappa, "alpha": s.alpha, "gamma": s.gamma, "Fz": s.Fz, "V": V}
-    inputs: dict[str, Array | None] = {
-        "p": None if s.p is None else _fill(np.asarray(s.p, float)),
-        "T": None if s.T is None else _fill(np.asarray(s.T, float)),
-    }
+    inputs: dict[str, Array | None] = {"p": None, "T": None}
     rawf, gap = {}, {}
     for k in SMOOTHED:
         rawf[k], gap[k] = bridge(t, np.asarray(raw[k], float))
+    for k, v in (("p", s.p), ("T", s.T)):
+        if v is not None:
+            inputs[k], gap[k] = bridge(t, np.asarray(v, float))
     bridged = np.any(list(gap.values()), axis=0)
     if windows is None:
         windows = {k: cv_window(rawf[k]) for k in SMOOTHED}
@@ -278,7 +271,11 @@ def prepare_wheel(
     assert kappa is not None and alpha is not None
     zero = np.zeros(n)
     Pw = frictional_power_W(
-        np.nan_to_num(meas.get("Fx", zero)), np.nan_to_num(meas.get("Fy", zero)), V, kappa, alpha
+        np.nan_to_num(meas.get("Fx", zero)),
+        np.nan_to_num(meas.get("Fy", zero)),
+        rawf["V"],
+        kappa,
+        alpha,
     )
     segments, block_s = split_segments(s), BLOCK_S
     if len(block_index(segments, t)) < MIN_BLOCKS:
