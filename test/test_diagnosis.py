@@ -1685,7 +1685,8 @@ def test_a_nan_stretch_in_a_recorded_temperature_is_bridged_not_a_step_to_its_me
     i = np.arange(300) + int(0.05 * len(w.t))  # early: the tyre still cool
     T = np.array(w.T, dtype=float)
     T[i] = np.nan
-    pw = prepare_wheel(dataclasses.replace(w, T=T), model, np.random.default_rng(0))
+    rng = np.random.default_rng(0)
+    pw = prepare_wheel(dataclasses.replace(w, T=T), model, rng)
     assert pw.gaps == {"T": 300}
     got = pw.inputs["T"]
     assert got is not None and np.isfinite(got).all()
@@ -1694,6 +1695,11 @@ def test_a_nan_stretch_in_a_recorded_temperature_is_bridged_not_a_step_to_its_me
     assert abs(float(np.median(w.T)) - lo) > 2.0  # the median would have been a step
     ctx = make_context(pw, model)
     assert not np.isin(ctx.rows["ab"], i).any()
+    # a channel with no finite sample is not recorded (said), a load without one is refused
+    none = prepare_wheel(dataclasses.replace(w, T=np.full(len(T), np.nan)), model, rng)
+    assert none.inputs["T"] is None and none.dropped == ("T",) and not none.bridged.any()
+    with pytest.raises(ValueError, match="Fz has no finite sample"):
+        prepare_wheel(dataclasses.replace(w, Fz=np.full(len(T), np.nan)), model, rng)
 
 
 def smooth_fixed(x: np.ndarray, w: int) -> np.ndarray:

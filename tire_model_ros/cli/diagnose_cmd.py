@@ -163,6 +163,8 @@ def run(args: argparse.Namespace) -> int:
         if a is not None and b is not None:
             unit = "N m" if ch == "Mz" else "N"
             print(f"  held-out {ch} RMSE: {a:.1f} -> {b:.1f} {unit}")
+    for prefix, names in diag.inputs_dropped.items():
+        print(f"  {prefix}: {', '.join(names)} not finite on any sample: taken as not recorded")
     for prefix, gaps in diag.inputs_bridged.items():
         counts = ", ".join(f"{k} {n}" for k, n in gaps.items())
         print(f"  {prefix}: inputs not finite on samples ({counts}): bridged, not scored")

@@ -66,6 +66,7 @@ class Wheel:
     # and how many per input
     bridged: Mask = field(default_factory=lambda: np.zeros(0, dtype=bool))
     gaps: dict[str, int] = field(default_factory=dict)
+    dropped: tuple[str, ...] = ()  # optional inputs without a finite sample: not recorded
 
     @property
     def n(self) -> int:
@@ -238,13 +239,22 @@ def prepare_wheel(
     Raises
     ------
     ValueError
-        Too few samples, or no measured force or moment.
+        Too few samples, a slip, camber or load without a finite sample, or no measured force
+        or moment.
     """
     n = len(s.t)
     if n < MIN_SAMPLES:
         raise ValueError(f"{s.prefix}: only {n} samples, too few to diagnose")
+    for k in ("kappa", "alpha", "gamma", "Fz"):
+        if not np.isfinite(np.asarray(getattr(s, k), float)).any():
+            raise ValueError(f"{s.prefix}: {k} has no finite sample")
+    optional = {"V": s.Vx, "p": s.p, "T": s.T}
+    dropped = tuple(
+        k for k, v in optional.items() if v is not None and not np.isfinite(np.asarray(v)).any()
+    )
+    given = {k: None if k in dropped else v for k, v in optional.items()}
     P = model.params
-    V = np.asarray(s.Vx, float) if s.Vx is not None else np.full(n, float(P["LONGVL"]))
+    V = np.asarray(given["V"], float) if given["V"] is not None else np.full(n, float(P["LONGVL"]))
     meas = {}
     for ch in CHANNELS:
         v = getattr(s, ch)
@@ -258,9 +268,9 @@ def prepare_wheel(
     rawf, gap = {}, {}
     for k in SMOOTHED:
         rawf[k], gap[k] = bridge(t, np.asarray(raw[k], float))
-    for k, v in (("p", s.p), ("T", s.T)):
-        if v is not None:
-            inputs[k], gap[k] = bridge(t, np.asarray(v, float))
+    for k in ("p", "T"):
+        if given[k] is not None:
+            inputs[k], gap[k] = bridge(t, np.asarray(given[k], float))
     bridged = np.any(list(gap.values()), axis=0)
     if windows is None:
         windows = {k: cv_window(rawf[k]) for k in SMOOTHED}
@@ -303,6 +313,7 @@ def prepare_wheel(
         windows,
         bridged,
         {k: int(g.sum()) for k, g in gap.items() if g.any()},
+        dropped,
     )
 
 

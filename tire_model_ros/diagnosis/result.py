@@ -141,6 +141,8 @@ def finish(prefix: str, sel: Selection) -> WheelDiagnosis:
         "where the file model's forces ask): "
         + ", ".join(f"{k} {n} samples" for k, n in w.smoothing.items())
     )
+    if w.dropped:
+        log.append(f"not finite on any sample, taken as not recorded: {', '.join(w.dropped)}")
     if w.gaps:
         log.append(
             "inputs not finite, bridged linearly in time and left out of fitting and scoring: "

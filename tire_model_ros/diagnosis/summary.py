@@ -109,6 +109,7 @@ class Diagnosis:
             for w, share in self.look_alikes.items()
         ]
         out["inputs_bridged"] = self.inputs_bridged
+        out["inputs_dropped"] = self.inputs_dropped
         if len(self.wheels) > 1:
             out["wheels"] = {p: w.to_json() for p, w in self.wheels.items()}
         return out
@@ -118,6 +119,12 @@ class Diagnosis:
         """Per wheel, per input, the samples that were not finite: bridged linearly in time,
         left out of every fit and score (:func:`.prepare.bridge`)."""
         return {p: dict(w.ctx.wheel.gaps) for p, w in self.wheels.items() if w.ctx.wheel.gaps}
+
+    @property
+    def inputs_dropped(self) -> dict[str, list[str]]:
+        """Per wheel, the optional inputs (speed, pressure, temperature) without a finite
+        sample: taken as not recorded."""
+        return {p: list(w.ctx.wheel.dropped) for p, w in self.wheels.items() if w.ctx.wheel.dropped}
 
     def node_effects(self, tir: str = "") -> Effects:
         """The node's effects file: each wheel's hidden states, and what is not carried."""
