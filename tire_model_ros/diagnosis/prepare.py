@@ -61,10 +61,10 @@ class Wheel:
     block_id: npt.NDArray[np.int64]  # block number per sample
     fold: npt.NDArray[np.int8]  # 0, 1 (selection folds) or 2 (final held-out) per sample
     scramble: Index  # sample order of a block-shuffled copy of a driver (controls)
-    smoothing: dict[str, int] = field(default_factory=dict)  # input smoother windows [samples]
     # samples where a recorded input was not finite (bridged, left out of fits and scores),
     # and how many per input
-    bridged: Mask = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    bridged: Mask
+    smoothing: dict[str, int] = field(default_factory=dict)  # input smoother windows [samples]
     gaps: dict[str, int] = field(default_factory=dict)
     dropped: tuple[str, ...] = ()  # optional inputs without a finite sample: not recorded
 
@@ -102,7 +102,8 @@ class Context:
 
 
 def bridge(t: Array, x: Array) -> tuple[Array, Mask]:
-    """A recorded input with its non-finite samples bridged linearly in time (held at the
+    """A recorded input (at least one sample finite: :func:`prepare_wheel` drops or refuses a
+    channel without one) with its non-finite samples bridged linearly in time (held at the
     ends), and where they were.
 
     A NaN in a message (a sensor's dropout flag, a failed conversion) is no value: filled with
@@ -113,8 +114,6 @@ def bridge(t: Array, x: Array) -> tuple[Array, Mask]:
     bad = ~np.isfinite(x)
     if not bad.any():
         return x, bad
-    if bad.all():
-        return np.zeros_like(x), bad
     return np.where(bad, np.interp(t, t[~bad], x[~bad]), x), bad
 
 
@@ -126,13 +125,6 @@ def _left_out_kernel(w: int) -> Array:
     k = np.zeros(w)
     k[keep] = np.linalg.pinv(np.vander(j[keep], 3, increasing=True))[0]
     return k
-
-
-def smooth(x: Array) -> tuple[Array, int]:
-    """Zero-phase Savitzky-Golay smoothing of a recorded input over :func:`cv_window`'s
-    window; returns the smoothed input and the window [samples]."""
-    w = cv_window(x)
-    return savgol(x, w), w
 
 
 def cv_window(x: Array) -> int:
@@ -180,7 +172,7 @@ def shorten(
     """Each input's window shortened where the file model's forces ask for it (compared on
     the samples where no input was ``bridged``).
 
-    The cross-validation of :func:`smooth` weighs an input's error alike everywhere and, by
+    The cross-validation of :func:`cv_window` weighs an input's error alike everywhere and, by
     predicting each sample without its neighbours, favours long windows where the input moves
     fast. The forces weigh it by the tyre's sensitivity, which is largest there (a car's load
     transfer, a brake's slip): the file model's Fx and Fy against the measured ones (whose own
@@ -310,8 +302,8 @@ def prepare_wheel(
         block_id,
         fold,
         scramble,
-        windows,
         bridged,
+        windows,
         {k: int(g.sum()) for k, g in gap.items() if g.any()},
         dropped,
     )
@@ -353,7 +345,7 @@ def swept(w: Wheel, key: str, level: float) -> bool:
 def fold_rows(w: Wheel, folds: tuple[int, ...], stride: int) -> Index:
     """Rows of ``folds`` where every measured channel is finite and no input was bridged,
     every ``stride``-th."""
-    ok = ~w.bridged if len(w.bridged) else np.ones(w.n, dtype=bool)
+    ok = ~w.bridged
     for v in w.meas.values():
         ok &= np.isfinite(v)
     return np.flatnonzero(np.isin(w.fold, folds) & ok)[::stride]

@@ -449,11 +449,7 @@ class EffectState:
             if node is None:
                 continue
             u = node.gain_per_W * self.P_last
-            if node.tau_s <= 0.0:
-                self.y[name] = _bounded(u)
-                continue
-            a = math.exp(-dt / node.tau_s)
-            self.y[name] = _bounded(a * self.y[name] + (1.0 - a) * u)
+            self.y[name] = _bounded(_held_lag(self.y[name], u, dt, node.tau_s))
 
     def _measured(self, T_C: float, dt: float, drive: bool) -> tuple[float, float]:
         """The measured temperature through the grip's lag T_lag_s and the carcass' lag, as
